@@ -41,8 +41,9 @@ struct NullVisitor {
   void operator()(const char*, U&) {}
 };
 template <class T>
-struct HasVisitFields<T, std::void_t<decltype(std::declval<T&>().VisitFields(
-                             std::declval<NullVisitor&>()))>> : std::true_type {};
+struct HasVisitFields<
+    T, std::void_t<decltype(std::declval<T&>().VisitFields(std::declval<NullVisitor&>()))>>
+    : std::true_type {};
 
 template <class T>
 struct IsVector : std::false_type {};
@@ -191,8 +192,9 @@ Options LoadOptions(const YAML::Node& node, const std::string& source,
   Options options;
   if (node.IsDefined() && !node.IsNull()) {
     if (!node.IsMap()) {
-      throw InputError(InputErrorKind::kBadValue, source, node.Mark().line + 1,
-                       "expected a map of options" + (prefix.empty() ? "" : " under '" + prefix + "'"));
+      throw InputError(
+          InputErrorKind::kBadValue, source, node.Mark().line + 1,
+          "expected a map of options" + (prefix.empty() ? "" : " under '" + prefix + "'"));
     }
     internal::ReadVisitor visitor(node, source, prefix.empty() ? "" : prefix + ".");
     options.VisitFields(visitor);

@@ -14,14 +14,22 @@ std::string FormatMessage(InputErrorKind kind, const std::string& file, int64_t 
 
 const char* ToString(InputErrorKind kind) {
   switch (kind) {
-    case InputErrorKind::kMissingFile: return "missing file";
-    case InputErrorKind::kMalformedRow: return "malformed row";
-    case InputErrorKind::kNonFinite: return "non-finite number";
-    case InputErrorKind::kNotRotation: return "not a rotation";
-    case InputErrorKind::kUnsorted: return "unsorted timestamp";
-    case InputErrorKind::kMissingField: return "missing field";
-    case InputErrorKind::kBadValue: return "bad value";
-    case InputErrorKind::kUnknownKey: return "unknown key";
+    case InputErrorKind::kMissingFile:
+      return "missing file";
+    case InputErrorKind::kMalformedRow:
+      return "malformed row";
+    case InputErrorKind::kNonFinite:
+      return "non-finite number";
+    case InputErrorKind::kNotRotation:
+      return "not a rotation";
+    case InputErrorKind::kUnsorted:
+      return "unsorted timestamp";
+    case InputErrorKind::kMissingField:
+      return "missing field";
+    case InputErrorKind::kBadValue:
+      return "bad value";
+    case InputErrorKind::kUnknownKey:
+      return "unknown key";
   }
   return "input error";
 }

@@ -9,14 +9,14 @@ namespace ag {
 /// What is wrong with an input file. Tests and callers branch on the kind;
 /// humans read the message, which always names file, line and problem.
 enum class InputErrorKind {
-  kMissingFile,    ///< file or directory does not exist / cannot be opened
-  kMalformedRow,   ///< wrong number of fields, unparsable number, bad syntax
-  kNonFinite,      ///< NaN or infinity where a number is required
-  kNotRotation,    ///< rotation / quaternion not orthonormal / unit
-  kUnsorted,       ///< timestamps not strictly increasing
-  kMissingField,   ///< a required YAML key or CSV column is absent
-  kBadValue,       ///< a value out of range or of the wrong type
-  kUnknownKey,     ///< a YAML key that no option reads (typo guard)
+  kMissingFile,   ///< file or directory does not exist / cannot be opened
+  kMalformedRow,  ///< wrong number of fields, unparsable number, bad syntax
+  kNonFinite,     ///< NaN or infinity where a number is required
+  kNotRotation,   ///< rotation / quaternion not orthonormal / unit
+  kUnsorted,      ///< timestamps not strictly increasing
+  kMissingField,  ///< a required YAML key or CSV column is absent
+  kBadValue,      ///< a value out of range or of the wrong type
+  kUnknownKey,    ///< a YAML key that no option reads (typo guard)
 };
 
 /// Human-readable name of an error kind ("non-finite number", ...).

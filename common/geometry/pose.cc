@@ -62,9 +62,8 @@ InterpolationResult InterpolateInBuffer(const std::vector<StampedPose>& sorted_p
     return result;
   }
   // First element with time >= t_ns.
-  const auto hi = std::lower_bound(
-      sorted_poses.begin(), sorted_poses.end(), t_ns,
-      [](const StampedPose& p, int64_t t) { return p.t_ns < t; });
+  const auto hi = std::lower_bound(sorted_poses.begin(), sorted_poses.end(), t_ns,
+                                   [](const StampedPose& p, int64_t t) { return p.t_ns < t; });
   result.status = InterpolationStatus::kOk;
   if (hi->t_ns == t_ns) {
     result.T = hi->T;

@@ -71,7 +71,6 @@ struct InterpolationResult {
 /// Pose at t_ns from a buffer sorted by strictly increasing t_ns, by
 /// InterpolatePose between the two neighbours. Exact hits return the stored
 /// pose. Outside [front, back] the status says which side; no extrapolation.
-InterpolationResult InterpolateInBuffer(const std::vector<StampedPose>& sorted_poses,
-                                        int64_t t_ns);
+InterpolationResult InterpolateInBuffer(const std::vector<StampedPose>& sorted_poses, int64_t t_ns);
 
 }  // namespace ag

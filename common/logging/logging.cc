@@ -1,13 +1,13 @@
 #include "common/logging/logging.h"
 
-#include "common/core/error.h"
-
 #include <spdlog/sinks/basic_file_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/sinks/stdout_sinks.h>
 
 #include <memory>
 #include <vector>
+
+#include "common/core/error.h"
 
 namespace ag {
 

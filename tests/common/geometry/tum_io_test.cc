@@ -11,9 +11,7 @@
 namespace ag {
 namespace {
 
-void WriteText(const std::string& path, const std::string& text) {
-  std::ofstream(path) << text;
-}
+void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
 // Runs ReadTum and returns the error it threw (fails the test if none).
 InputError ReadError(const std::string& path) {
@@ -48,7 +46,8 @@ TEST(TumIoTest, WriteThenReadIsIdentical) {
   for (int i = 0; i < 100; ++i) {
     StampedPose p;
     p.t_ns = 1700000000000000000LL + i * 10000001LL;
-    p.T.linear() = Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
+    p.T.linear() =
+        Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
     p.T.translation() = Eigen::Vector3d(n(rng), n(rng), n(rng));
     poses.push_back(p);
   }
