@@ -10,9 +10,10 @@ cd "$(dirname "$0")/.."
 PACKAGES=(
   build-essential cmake pkg-config ccache git
   libeigen3-dev libopencv-dev libceres-dev libpcl-dev
-  liblcm-dev liblcm-bin liblcm-java libglib2.0-dev default-jdk-headless
+  liblcm-dev liblcm-bin liblcm-java libjchart2d-java libglib2.0-dev default-jdk-headless
   libspdlog-dev libyaml-cpp-dev libcli11-dev libhnswlib-dev libfaiss-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  python3-onnx
   iproute2 clang-format clang-tidy
 )
 
