@@ -1,0 +1,337 @@
+#include "ground_server/estimation/agent_estimator.h"
+
+#include <algorithm>
+#include <chrono>
+#include <set>
+
+#include "common/core/error.h"
+
+namespace ag {
+namespace {
+
+class Stopwatch {
+ public:
+  Stopwatch() : start_(std::chrono::steady_clock::now()) {}
+  double ElapsedMs() const {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_)
+        .count();
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+};
+
+// Rows of a UGV keyframe that have depth, as a descriptor matrix plus the
+// keypoint index of each row.
+struct DepthRows {
+  cv::Mat descriptors;
+  std::vector<int> keypoint;
+};
+
+DepthRows RowsWithDepth(const UgvKeyframe& kf) {
+  DepthRows rows;
+  for (size_t i = 0; i < kf.features.size(); ++i) {
+    if (i < kf.has_point.size() && kf.has_point[i]) rows.keypoint.push_back(static_cast<int>(i));
+  }
+  rows.descriptors = cv::Mat(static_cast<int>(rows.keypoint.size()), kf.features.dim(), CV_32F);
+  for (size_t r = 0; r < rows.keypoint.size(); ++r) {
+    kf.features.descriptors.row(rows.keypoint[r]).copyTo(rows.descriptors.row(static_cast<int>(r)));
+  }
+  return rows;
+}
+
+struct PairCandidate {
+  int ugv = 0;  // index in the window
+  std::shared_ptr<const AirKeyframe> air;
+  double score = 0;
+};
+
+// What one air-ground correspondence came from.
+struct CorrespondenceSource {
+  int pair = 0;
+  int ugv = 0;
+  int ugv_keypoint = 0;
+  int air_keypoint = 0;
+};
+
+}  // namespace
+
+void EstimatorOptions::Check() const {
+  CheckOption(retrieval_k >= 1, "retrieval_k", "must be >= 1");
+  CheckOption(recent_covisible >= 0, "recent_covisible", "must be >= 0");
+  CheckOption(covisible_fraction > 0 && covisible_fraction <= 1, "covisible_fraction",
+              "must be in (0, 1]");
+  CheckOption(max_pairs >= 1, "max_pairs", "must be >= 1");
+  CheckOption(min_matches >= 4, "min_matches", "must be >= 4");
+  CheckOption(min_pair_inliers >= 4, "min_pair_inliers", "must be >= 4");
+  CheckOption(min_inliers >= 6, "min_inliers", "must be >= 6");
+  CheckOption(track_gate_px > 0, "track_gate_px", "must be > 0");
+}
+
+AgentEstimator::AgentEstimator(std::string agent, const EstimatorOptions& options,
+                               std::shared_ptr<const Camera> ugv_camera)
+    : agent_(std::move(agent)),
+      options_(options),
+      ugv_camera_(std::move(ugv_camera)),
+      gate_(options.gate) {
+  options_.Check();
+}
+
+void AgentEstimator::SetAirCamera(const std::string& camera_id,
+                                  std::shared_ptr<const Camera> camera) {
+  air_cameras_[camera_id] = std::move(camera);
+}
+
+bool AgentEstimator::HasAirCamera(const std::string& camera_id) const {
+  return air_cameras_.count(camera_id) > 0;
+}
+
+EstimateResult AgentEstimator::Estimate(
+    int64_t t_ns, const std::deque<std::shared_ptr<const UgvKeyframe>>& window,
+    const AirKeyframeSource& source) {
+  const Stopwatch total;
+  EstimateResult r;
+  auto fail = [&](const std::string& reason) {
+    r.reason = reason;
+    r.gate = gate_.Failed(t_ns);
+    r.timing.total_ms = total.ElapsedMs();
+    return r;
+  };
+  if (window.empty()) return fail("no UGV keyframe yet");
+  const int n_window = static_cast<int>(window.size());
+  const UgvKeyframe& newest = *window.back();
+
+  // 1. Candidate pairs: retrieval for every window keyframe, plus the newest
+  //    UAV keyframes that the current fix says are co-visible.
+  Stopwatch step;
+  std::vector<PairCandidate> candidates;
+  for (int j = n_window - 1; j >= 0; --j) {
+    for (const auto& c :
+         source.Retrieve(window[j]->global_descriptor, agent_, options_.retrieval_k)) {
+      candidates.push_back({j, c.keyframe, c.similarity});
+    }
+  }
+  if (gate_.fix() && options_.recent_covisible > 0) {
+    for (const auto& air : source.Recent(agent_, options_.recent_covisible)) {
+      const auto cam = air_cameras_.find(air->camera_id);
+      if (cam == air_cameras_.end()) continue;
+      int inside = 0, total_points = 0;
+      for (size_t i = 0; i < newest.points_wg.size(); i += 4) {
+        if (!newest.has_point[i]) continue;
+        ++total_points;
+        Eigen::Vector2d uv;
+        if (cam->second->Project(air->T_wa_c.inverse() * (*gate_.fix() * newest.points_wg[i]),
+                                 &uv) &&
+            cam->second->InImage(uv)) {
+          ++inside;
+        }
+      }
+      if (total_points > 0 && inside >= options_.covisible_fraction * total_points) {
+        candidates.push_back({n_window - 1, air, 2.0});  // ranks above any similarity
+      }
+    }
+  }
+  // One entry per (UGV keyframe, UAV keyframe), best score first.
+  std::sort(candidates.begin(), candidates.end(), [](const auto& a, const auto& b) {
+    if (a.ugv != b.ugv) return a.ugv < b.ugv;
+    if (a.air->seq != b.air->seq) return a.air->seq < b.air->seq;
+    return a.score > b.score;
+  });
+  candidates.erase(std::unique(candidates.begin(), candidates.end(),
+                               [](const auto& a, const auto& b) {
+                                 return a.ugv == b.ugv && a.air->seq == b.air->seq;
+                               }),
+                   candidates.end());
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const auto& a, const auto& b) { return a.score > b.score; });
+  int missing_camera = 0, wrong_type = 0;
+  std::vector<PairCandidate> pairs;
+  for (const auto& c : candidates) {
+    if (static_cast<int>(pairs.size()) >= options_.max_pairs) break;
+    if (!HasAirCamera(c.air->camera_id)) {
+      ++missing_camera;
+      continue;
+    }
+    if (c.air->features.descriptor_type != window[c.ugv]->features.descriptor_type ||
+        c.air->features.dim() != window[c.ugv]->features.dim()) {
+      ++wrong_type;
+      continue;
+    }
+    pairs.push_back(c);
+  }
+  r.timing.retrieval_ms = step.ElapsedMs();
+  std::set<int64_t> air_seqs;
+  for (const auto& p : pairs) air_seqs.insert(p.air->seq);
+  r.candidates = static_cast<int>(air_seqs.size());
+  if (pairs.empty()) {
+    std::string why = "no UAV keyframe to match";
+    if (missing_camera) why += " (" + std::to_string(missing_camera) + " without camera_info)";
+    if (wrong_type) why += " (" + std::to_string(wrong_type) + " with another descriptor type)";
+    return fail(why);
+  }
+
+  // 2. Descriptor matching of every pair; correspondences of UGV 3-D points
+  //    and UAV rays.
+  step = Stopwatch();
+  std::map<int, DepthRows> rows;
+  std::vector<std::shared_ptr<const AirKeyframe>> air_frames;
+  std::map<int64_t, int> air_index;
+  std::vector<RayPointCorrespondence> corr;
+  std::vector<CorrespondenceSource> origin;
+  int used_pairs = 0;
+  for (size_t p = 0; p < pairs.size(); ++p) {
+    const PairCandidate& pc = pairs[p];
+    auto it = rows.find(pc.ugv);
+    if (it == rows.end()) it = rows.emplace(pc.ugv, RowsWithDepth(*window[pc.ugv])).first;
+    const auto matches =
+        MatchDescriptors(it->second.descriptors, pc.air->features.descriptors, options_.matcher);
+    if (static_cast<int>(matches.size()) < options_.min_matches) continue;
+    ++used_pairs;
+    auto [ai, inserted] = air_index.emplace(pc.air->seq, static_cast<int>(air_frames.size()));
+    if (inserted) air_frames.push_back(pc.air);
+    const Camera& cam = *air_cameras_.at(pc.air->camera_id);
+    for (const DescriptorMatch& m : matches) {
+      const int ugv_kp = it->second.keypoint[m.a];
+      RayPointCorrespondence k;
+      k.p_wg = window[pc.ugv]->points_wg[ugv_kp];
+      k.uv = pc.air->features.keypoints[m.b].cast<double>();
+      k.xy_normalized = cam.UndistortToNormalized(k.uv);
+      k.c_wa = pc.air->T_wa_c.translation();
+      k.b_wa = pc.air->T_wa_c.linear() *
+               Eigen::Vector3d(k.xy_normalized.x(), k.xy_normalized.y(), 1.0).normalized();
+      k.air_frame = ai->second;
+      corr.push_back(k);
+      origin.push_back({static_cast<int>(p), pc.ugv, ugv_kp, m.b});
+    }
+  }
+  r.timing.matching_ms = step.ElapsedMs();
+  if (used_pairs == 0) {
+    return fail("no keyframe pair with " + std::to_string(options_.min_matches) +
+                " descriptor matches (" + std::to_string(pairs.size()) + " pairs tried)");
+  }
+
+  // 3. Robust initial estimate over all pairs.
+  step = Stopwatch();
+  std::vector<Pose> T_wa_ca;
+  double focal = 0;
+  for (const auto& a : air_frames) {
+    T_wa_ca.push_back(a->T_wa_c);
+    focal += air_cameras_.at(a->camera_id)->params().fx;
+  }
+  focal /= static_cast<double>(air_frames.size());
+  RansacOptions ransac = options_.ransac;
+  ransac.min_inliers = std::max(ransac.min_inliers, options_.min_inliers);
+  const AbsolutePoseResult initial = EstimateAbsolutePose(corr, T_wa_ca, focal, ransac);
+  r.timing.ransac_ms = step.ElapsedMs();
+  if (!initial.success) return fail("initial estimate: " + initial.reason);
+  r.T_wa_wg_initial = initial.T_wa_wg;
+
+  // Per-pair inliers, for the consistency term.
+  std::map<int, std::vector<int>> pair_inliers;
+  for (int i : initial.inliers) pair_inliers[origin[i].pair].push_back(i);
+
+  // 4. Stage 1: UGV window BA over the tracks of inlier UGV keypoints.
+  step = Stopwatch();
+  std::map<std::pair<int, int>, Eigen::Vector3d> refined;  // (ugv, keypoint) -> p_wg
+  if (options_.use_stage1 && n_window >= 2) {
+    std::map<std::pair<int, int>, int> track_of;
+    std::vector<UgvTrack> tracks;
+    std::vector<std::pair<int, int>> track_key;
+    for (int i : initial.inliers) {
+      const auto key = std::make_pair(origin[i].ugv, origin[i].ugv_keypoint);
+      if (track_of.count(key)) continue;
+      const UgvKeyframe& host = *window[key.first];
+      UgvTrack t;
+      t.host_frame = key.first;
+      t.f_host =
+          ugv_camera_->UndistortToNormalized(host.features.keypoints[key.second].cast<double>());
+      t.lidar_depth = (host.T_wg_c.inverse() * host.points_wg[key.second]).z();
+      if (!(t.lidar_depth > 0.1)) continue;
+      track_of[key] = static_cast<int>(tracks.size());
+      tracks.push_back(t);
+      track_key.push_back(key);
+    }
+    // Observations: match each host's tracked keypoints against the other
+    // window keyframes, keeping matches that reproject near the LiDAR point.
+    std::map<int, std::vector<int>> tracks_by_host;
+    for (size_t t = 0; t < tracks.size(); ++t)
+      tracks_by_host[tracks[t].host_frame].push_back(static_cast<int>(t));
+    for (const auto& [host, ids] : tracks_by_host) {
+      cv::Mat sub(static_cast<int>(ids.size()), window[host]->features.dim(), CV_32F);
+      for (size_t s = 0; s < ids.size(); ++s) {
+        window[host]
+            ->features.descriptors.row(track_key[ids[s]].second)
+            .copyTo(sub.row(static_cast<int>(s)));
+      }
+      for (int m = 0; m < n_window; ++m) {
+        if (m == host) continue;
+        const UgvKeyframe& other = *window[m];
+        const Pose T_c_wg = other.T_wg_c.inverse();
+        for (const DescriptorMatch& dm :
+             MatchDescriptors(sub, other.features.descriptors, options_.matcher)) {
+          const int t = ids[dm.a];
+          const Eigen::Vector3d& p = window[host]->points_wg[track_key[t].second];
+          const Eigen::Vector2d uv = other.features.keypoints[dm.b].cast<double>();
+          Eigen::Vector2d predicted;
+          if (ugv_camera_->Project(T_c_wg * p, &predicted) &&
+              (predicted - uv).norm() < options_.track_gate_px) {
+            tracks[t].observations.emplace_back(m, uv);
+          }
+        }
+      }
+    }
+    std::vector<UgvWindowFrame> frames;
+    for (const auto& kf : window) frames.push_back({kf->t_ns, kf->T_wg_c, ugv_camera_.get()});
+    const Stage1Result s1 = RunStage1(frames, tracks, options_.stage1);
+    if (s1.success) {
+      for (size_t t = 0; t < tracks.size(); ++t) {
+        if (!tracks[t].observations.empty()) refined[track_key[t]] = s1.points_wg[t];
+      }
+    }
+  }
+  r.timing.stage1_ms = step.ElapsedMs();
+
+  // 5. Stage 2: T_wa_wg and UAV poses.
+  step = Stopwatch();
+  std::vector<AirFrame> frames2;
+  for (const auto& a : air_frames)
+    frames2.push_back({a->t_ns, a->T_wa_c, air_cameras_.at(a->camera_id).get()});
+  std::vector<AirGroundObservation> observations;
+  std::vector<RayPointCorrespondence> refined_corr = corr;
+  for (int i : initial.inliers) {
+    const auto it = refined.find({origin[i].ugv, origin[i].ugv_keypoint});
+    if (it != refined.end()) refined_corr[i].p_wg = it->second;
+    observations.push_back({corr[i].air_frame, refined_corr[i].p_wg, corr[i].uv});
+  }
+  std::vector<PairEstimate> pair_estimates;
+  for (const auto& [pair, inliers] : pair_inliers) {
+    if (static_cast<int>(inliers.size()) < options_.min_pair_inliers) continue;
+    const int air = corr[inliers.front()].air_frame;
+    const Pose T_pair = RefineFourDof(initial.T_wa_wg, refined_corr, inliers, T_wa_ca);
+    pair_estimates.push_back({air, T_wa_ca[air].inverse() * T_pair, inliers.size() / 20.0});
+  }
+  Stage2Options s2_options = options_.stage2;
+  if (pair_estimates.empty()) s2_options.use_consistency = false;
+  if (!s2_options.use_consistency && !s2_options.use_reprojection) {
+    return fail("no pair has " + std::to_string(options_.min_pair_inliers) +
+                " inliers for the consistency-only configuration");
+  }
+  const Stage2Result s2 =
+      RunStage2(initial.T_wa_wg, frames2, observations, pair_estimates, s2_options);
+  r.timing.stage2_ms = step.ElapsedMs();
+  if (!s2.success) return fail(s2.reason);
+
+  r.success = true;
+  r.T_wa_wg = s2.T_wa_wg;
+  r.covariance = s2.covariance;
+  r.has_covariance = s2.has_covariance;
+  r.inliers = static_cast<int>(initial.inliers.size());
+  r.pairs = static_cast<int>(pair_inliers.size());
+  r.rms_reprojection_px = s2.rms_reprojection_px;
+  for (const auto& a : air_frames) r.newest_air_t_ns = std::max(r.newest_air_t_ns, a->t_ns);
+  r.gate = gate_.Offer(t_ns, r.T_wa_wg);
+  r.timing.total_ms = total.ElapsedMs();
+  return r;
+}
+
+}  // namespace ag

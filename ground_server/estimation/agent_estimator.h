@@ -1,0 +1,140 @@
+#pragma once
+
+// The relative-pose pipeline for one air agent (paper, Section III), callable
+// without threads: retrieve co-visible UAV keyframes for the UGV sliding
+// window, match descriptors, EPnP/4-DoF RANSAC, stage 1 (UGV window BA),
+// stage 2 (4-DoF T_wa_wg with UAV poses), covariance, and the fix gate.
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/camera/camera.h"
+#include "common/types/keyframe.h"
+#include "ground_server/estimation/absolute_pose.h"
+#include "ground_server/estimation/fix_gate.h"
+#include "ground_server/estimation/refinement.h"
+#include "ground_server/matching/descriptor_matcher.h"
+
+namespace ag {
+
+/// A UGV keyframe after depth association.
+struct UgvKeyframe {
+  int64_t id = 0;                  ///< unique, increasing
+  int64_t t_ns = 0;                ///< image time, ground clock
+  Pose T_wg_c = Pose::Identity();  ///< camera pose interpolated from LIO
+  LocalFeatures features;
+  std::vector<float> global_descriptor;
+  std::vector<Eigen::Vector3d> points_wg;  ///< per keypoint, meaningful where has_point
+  std::vector<uint8_t> has_point;          ///< 1 when the LiDAR map gave the keypoint depth
+};
+
+/// Where UAV keyframes come from (the place database in the daemon).
+class AirKeyframeSource {
+ public:
+  struct Candidate {
+    std::shared_ptr<const AirKeyframe> keyframe;
+    double similarity = 0;  ///< global-descriptor similarity (higher is closer)
+  };
+  virtual ~AirKeyframeSource() = default;
+  /// Up to k keyframes of `agent` most similar to `global`.
+  virtual std::vector<Candidate> Retrieve(const std::vector<float>& global,
+                                          const std::string& agent, int k) const = 0;
+  /// Up to n most recent keyframes of `agent`, newest first.
+  virtual std::vector<std::shared_ptr<const AirKeyframe>> Recent(const std::string& agent,
+                                                                 int n) const = 0;
+};
+
+struct EstimatorOptions {
+  int retrieval_k = 4;              ///< candidates retrieved per UGV window keyframe
+  int recent_covisible = 3;         ///< also try this many newest UAV keyframes once fixed
+  double covisible_fraction = 0.2;  ///< of UGV points inside the UAV image to count as co-visible
+  int max_pairs = 12;               ///< air-ground keyframe pairs matched per estimate
+  int min_matches = 20;             ///< a pair with fewer descriptor matches is discarded
+  int min_pair_inliers = 12;        ///< a pair with fewer RANSAC inliers gives no consistency term
+  int min_inliers = 30;             ///< fewer inliers overall: no estimate
+  bool use_stage1 = true;           ///< r_GC (UGV window BA); off for the ablation
+  double track_gate_px = 8.0;       ///< UGV-UGV match must reproject within this (px)
+  MatcherOptions matcher;
+  RansacOptions ransac;
+  Stage1Options stage1;
+  Stage2Options stage2;
+  FixGate::Options gate;
+
+  template <class V>
+  void VisitFields(V& v) {
+    v("retrieval_k", retrieval_k);
+    v("recent_covisible", recent_covisible);
+    v("covisible_fraction", covisible_fraction);
+    v("max_pairs", max_pairs);
+    v("min_matches", min_matches);
+    v("min_pair_inliers", min_pair_inliers);
+    v("min_inliers", min_inliers);
+    v("use_stage1", use_stage1);
+    v("track_gate_px", track_gate_px);
+    v("matcher", matcher);
+    v("ransac", ransac);
+    v("stage1", stage1);
+    v("stage2", stage2);
+    v("gate", gate);
+  }
+  void Check() const;
+};
+
+/// Wall-clock time of each step of one estimate (ms).
+struct EstimateTiming {
+  double retrieval_ms = 0;
+  double matching_ms = 0;
+  double ransac_ms = 0;
+  double stage1_ms = 0;
+  double stage2_ms = 0;
+  double total_ms = 0;
+};
+
+struct EstimateResult {
+  bool success = false;  ///< an estimate was computed (published or not: see gate)
+  std::string reason;    ///< why not, when !success
+  Pose T_wa_wg = Pose::Identity();
+  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();  ///< (x, y, z, yaw), m^2 / rad^2
+  bool has_covariance = false;
+  int inliers = 0;
+  int pairs = 0;                ///< air-ground keyframe pairs that contributed
+  int candidates = 0;           ///< UAV keyframes considered
+  int64_t newest_air_t_ns = 0;  ///< air clock time of the newest UAV keyframe used
+  double rms_reprojection_px = 0;
+  Pose T_wa_wg_initial = Pose::Identity();  ///< RANSAC result, before refinement
+  FixGate::Decision gate;                   ///< whether this estimate is published, and the status
+  EstimateTiming timing;
+};
+
+/// Estimates T_wa_wg for one air agent. Not thread-safe; one instance per
+/// agent, so agents never wait for each other.
+class AgentEstimator {
+ public:
+  AgentEstimator(std::string agent, const EstimatorOptions& options,
+                 std::shared_ptr<const Camera> ugv_camera);
+
+  /// Camera of the agent's keyframes with this camera_id (from camera_info).
+  void SetAirCamera(const std::string& camera_id, std::shared_ptr<const Camera> camera);
+  bool HasAirCamera(const std::string& camera_id) const;
+
+  /// One estimate at ground time t_ns over the UGV window (oldest first).
+  EstimateResult Estimate(int64_t t_ns,
+                          const std::deque<std::shared_ptr<const UgvKeyframe>>& window,
+                          const AirKeyframeSource& source);
+
+  const std::string& agent() const { return agent_; }
+  const FixGate& gate() const { return gate_; }
+
+ private:
+  std::string agent_;
+  EstimatorOptions options_;
+  std::shared_ptr<const Camera> ugv_camera_;
+  std::map<std::string, std::shared_ptr<const Camera>> air_cameras_;
+  FixGate gate_;
+};
+
+}  // namespace ag

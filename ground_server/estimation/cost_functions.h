@@ -1,0 +1,263 @@
+#pragma once
+
+// Ceres residuals of the two refinement stages (paper, Section "Two-stage
+// Optimization"). Conventions: a 6-DoF pose T_w_c is two parameter blocks,
+// an Eigen quaternion q (x, y, z, w; ceres::EigenQuaternionManifold) and a
+// translation t; the 4-DoF T_wa_wg is one block (x, y, z, yaw). Residuals are
+// whitened by their standard deviation (sqrt information) so that robust
+// losses and covariances are in consistent units. Include only from .cc files
+// (Ceres headers are kept out of the rest of the build).
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "common/camera/camera.h"
+
+namespace ag {
+
+/// Stage 1, eq. (r_GC): UGV reprojection of a map point in inverse-depth
+/// form. The point is anchored in its host keyframe h, where it was first
+/// seen at undistorted normalised coordinates f_h = (x, y, 1); with inverse
+/// depth rho,
+///   p_wg = R_h * f_h / rho + t_h,   p_cj = R_j^T (p_wg - t_j),
+///   r = (K_j(p_cj) - u_j) / sigma_px.
+/// Parameters: q_h, t_h, q_j, t_j, rho. Inverse depth keeps far points well
+/// conditioned (paper: "for numerical stability").
+struct InverseDepthReprojectionError {
+  InverseDepthReprojectionError(const Camera* camera, const Eigen::Vector2d& f_h,
+                                const Eigen::Vector2d& u_j, double sigma_px)
+      : camera_(camera), f_h_(f_h), u_j_(u_j), inv_sigma_(1.0 / sigma_px) {}
+
+  template <typename T>
+  bool operator()(const T* q_h, const T* t_h, const T* q_j, const T* t_j, const T* rho,
+                  T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> R_h(q_h);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_h(t_h);
+    const Eigen::Map<const Eigen::Quaternion<T>> R_j(q_j);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_j(t_j);
+    const Eigen::Matrix<T, 3, 1> f(T(f_h_.x()), T(f_h_.y()), T(1.0));
+    const Eigen::Matrix<T, 3, 1> p_wg = R_h * (f / rho[0]) + p_h;
+    const Eigen::Matrix<T, 3, 1> p_cj = R_j.conjugate() * (p_wg - p_j);
+    if (p_cj.z() <= T(1e-3)) return false;  // behind the camera: step rejected
+    T uv[2];
+    camera_->ProjectT(p_cj.data(), uv);
+    residual[0] = (uv[0] - T(u_j_.x())) * inv_sigma_;
+    residual[1] = (uv[1] - T(u_j_.y())) * inv_sigma_;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Camera* camera, const Eigen::Vector2d& f_h,
+                                     const Eigen::Vector2d& u_j, double sigma_px) {
+    return new ceres::AutoDiffCostFunction<InverseDepthReprojectionError, 2, 4, 3, 4, 3, 1>(
+        new InverseDepthReprojectionError(camera, f_h, u_j, sigma_px));
+  }
+
+ private:
+  const Camera* camera_;
+  Eigen::Vector2d f_h_;
+  Eigen::Vector2d u_j_;
+  double inv_sigma_;
+};
+
+/// Stage 1: LiDAR depth of a map point as a prior on its inverse depth.
+/// r = (1/rho - d) / sigma_d, the depth along the host camera's z axis.
+struct DepthPriorError {
+  DepthPriorError(double depth, double sigma_m) : depth_(depth), inv_sigma_(1.0 / sigma_m) {}
+
+  template <typename T>
+  bool operator()(const T* rho, T* residual) const {
+    residual[0] = (T(1.0) / rho[0] - T(depth_)) * inv_sigma_;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double depth, double sigma_m) {
+    return new ceres::AutoDiffCostFunction<DepthPriorError, 1, 1>(
+        new DepthPriorError(depth, sigma_m));
+  }
+
+ private:
+  double depth_;
+  double inv_sigma_;
+};
+
+/// Relative-motion prior between two 6-DoF poses T_w_a and T_w_b, measured as
+/// T_a_b by odometry (LIO for UGV keyframes, VIO for UAV keyframes):
+///   dT = T_a_b_measured^-1 * (T_w_a^-1 * T_w_b),
+///   r = [ dt / sigma_t ; 2 vec(dq) / sigma_rot ]
+/// (as Ceres' pose_graph_3d example, with diagonal sqrt information).
+struct RelativePoseError {
+  RelativePoseError(const Eigen::Quaterniond& q_ab, const Eigen::Vector3d& t_ab, double sigma_t,
+                    double sigma_rot)
+      : q_ab_(q_ab), t_ab_(t_ab), inv_sigma_t_(1.0 / sigma_t), inv_sigma_rot_(1.0 / sigma_rot) {}
+
+  template <typename T>
+  bool operator()(const T* q_a_ptr, const T* t_a_ptr, const T* q_b_ptr, const T* t_b_ptr,
+                  T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q_a(q_a_ptr);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t_a(t_a_ptr);
+    const Eigen::Map<const Eigen::Quaternion<T>> q_b(q_b_ptr);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t_b(t_b_ptr);
+    const Eigen::Quaternion<T> q_a_inv = q_a.conjugate();
+    const Eigen::Quaternion<T> q_ab_est = q_a_inv * q_b;
+    const Eigen::Matrix<T, 3, 1> t_ab_est = q_a_inv * (t_b - t_a);
+    const Eigen::Quaternion<T> dq = q_ab_.template cast<T>().conjugate() * q_ab_est;
+    const Eigen::Matrix<T, 3, 1> dt = t_ab_est - t_ab_.template cast<T>();
+    // Keep the short way round: q and -q are the same rotation.
+    const T sign = dq.w() < T(0) ? T(-1) : T(1);
+    for (int i = 0; i < 3; ++i) {
+      residual[i] = dt[i] * inv_sigma_t_;
+      residual[3 + i] = sign * T(2.0) * dq.vec()[i] * inv_sigma_rot_;
+    }
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Quaterniond& q_ab, const Eigen::Vector3d& t_ab,
+                                     double sigma_t, double sigma_rot) {
+    return new ceres::AutoDiffCostFunction<RelativePoseError, 6, 4, 3, 4, 3>(
+        new RelativePoseError(q_ab, t_ab, sigma_t, sigma_rot));
+  }
+
+ private:
+  Eigen::Quaterniond q_ab_;
+  Eigen::Vector3d t_ab_;
+  double inv_sigma_t_;
+  double inv_sigma_rot_;
+};
+
+/// Prior of a 6-DoF pose towards a measured value (same residual as
+/// RelativePoseError with T_w_a = identity).
+struct PosePriorError {
+  PosePriorError(const Eigen::Quaterniond& q, const Eigen::Vector3d& t, double sigma_t,
+                 double sigma_rot)
+      : q_(q), t_(t), inv_sigma_t_(1.0 / sigma_t), inv_sigma_rot_(1.0 / sigma_rot) {}
+
+  template <typename T>
+  bool operator()(const T* q_ptr, const T* t_ptr, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(q_ptr);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t(t_ptr);
+    const Eigen::Quaternion<T> dq = q_.template cast<T>().conjugate() * q;
+    const T sign = dq.w() < T(0) ? T(-1) : T(1);
+    for (int i = 0; i < 3; ++i) {
+      residual[i] = (t[i] - T(t_[i])) * inv_sigma_t_;
+      residual[3 + i] = sign * T(2.0) * dq.vec()[i] * inv_sigma_rot_;
+    }
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Quaterniond& q, const Eigen::Vector3d& t,
+                                     double sigma_t, double sigma_rot) {
+    return new ceres::AutoDiffCostFunction<PosePriorError, 6, 4, 3>(
+        new PosePriorError(q, t, sigma_t, sigma_rot));
+  }
+
+ private:
+  Eigen::Quaterniond q_;
+  Eigen::Vector3d t_;
+  double inv_sigma_t_;
+  double inv_sigma_rot_;
+};
+
+/// The 4-DoF transform (x, y, z, yaw) applied to a point: RotZ(yaw) p + t.
+template <typename T>
+Eigen::Matrix<T, 3, 1> ApplyFourDof(const T* x, const Eigen::Matrix<T, 3, 1>& p) {
+  using std::cos;
+  using std::sin;
+  const T c = cos(x[3]);
+  const T s = sin(x[3]);
+  return Eigen::Matrix<T, 3, 1>(c * p.x() - s * p.y() + x[0], s * p.x() + c * p.y() + x[1],
+                                p.z() + x[2]);
+}
+
+/// Stage 2, eq. (agreproj): air-ground reprojection. A ground point p_wg
+/// (fixed after stage 1) seen by the UAV at pixel u_a:
+///   p_ca = R_a^T (T_wa_wg(x) p_wg - t_a),   r = (K_a(p_ca) - u_a) / sigma_px.
+/// Parameters: x = (x, y, z, yaw) of T_wa_wg, q_a, t_a of T_wa_ca.
+struct AirGroundReprojectionError {
+  AirGroundReprojectionError(const Camera* camera, const Eigen::Vector3d& p_wg,
+                             const Eigen::Vector2d& u_a, double sigma_px)
+      : camera_(camera), p_wg_(p_wg), u_a_(u_a), inv_sigma_(1.0 / sigma_px) {}
+
+  template <typename T>
+  bool operator()(const T* x, const T* q_a, const T* t_a, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> R_a(q_a);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_a(t_a);
+    const Eigen::Matrix<T, 3, 1> p_wa = ApplyFourDof(x, p_wg_.cast<T>().eval());
+    const Eigen::Matrix<T, 3, 1> p_ca = R_a.conjugate() * (p_wa - p_a);
+    if (p_ca.z() <= T(1e-3)) return false;
+    T uv[2];
+    camera_->ProjectT(p_ca.data(), uv);
+    residual[0] = (uv[0] - T(u_a_.x())) * inv_sigma_;
+    residual[1] = (uv[1] - T(u_a_.y())) * inv_sigma_;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Camera* camera, const Eigen::Vector3d& p_wg,
+                                     const Eigen::Vector2d& u_a, double sigma_px) {
+    return new ceres::AutoDiffCostFunction<AirGroundReprojectionError, 2, 4, 4, 3>(
+        new AirGroundReprojectionError(camera, p_wg, u_a, sigma_px));
+  }
+
+ private:
+  const Camera* camera_;
+  Eigen::Vector3d p_wg_;
+  Eigen::Vector2d u_a_;
+  double inv_sigma_;
+};
+
+/// Stage 2, eq. (gcon): relative-pose consistency. Each air-ground keyframe
+/// pair j gives its own estimate T^_j = T_wa_ca(j) * T_ca_wg(j), where
+/// T_ca_wg(j) is that pair's PnP result (fixed) and T_wa_ca(j) the UAV pose
+/// being optimised. The paper's || T_wa_wg T^_j^-1 - I || is taken on the
+/// 4 DoF: with D = T_wa_wg T^_j^-1,
+///   r = [ t_D / sigma_t ; wrap(yaw - yaw^_j) / sigma_yaw ].
+/// Parameters: x = (x, y, z, yaw) of T_wa_wg, q_a, t_a.
+struct RelativePoseConsistencyError {
+  RelativePoseConsistencyError(const Eigen::Quaterniond& q_ca_wg, const Eigen::Vector3d& t_ca_wg,
+                               double sigma_t, double sigma_yaw)
+      : q_ca_wg_(q_ca_wg),
+        t_ca_wg_(t_ca_wg),
+        inv_sigma_t_(1.0 / sigma_t),
+        inv_sigma_yaw_(1.0 / sigma_yaw) {}
+
+  template <typename T>
+  bool operator()(const T* x, const T* q_a, const T* t_a, T* residual) const {
+    using std::atan2;
+    using std::cos;
+    using std::sin;
+    const Eigen::Map<const Eigen::Quaternion<T>> R_a(q_a);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_a(t_a);
+    // T^ = T_wa_ca * T_ca_wg
+    const Eigen::Quaternion<T> q_hat = R_a * q_ca_wg_.cast<T>();
+    const Eigen::Matrix<T, 3, 1> t_hat = R_a * t_ca_wg_.cast<T>() + p_a;
+    const Eigen::Matrix<T, 3, 3> R_hat = q_hat.toRotationMatrix();
+    // Yaw of T^ projected to a rotation about z (closest in Frobenius norm).
+    const T yaw_hat = atan2(R_hat(1, 0) - R_hat(0, 1), R_hat(0, 0) + R_hat(1, 1));
+    const T d_yaw = x[3] - yaw_hat;
+    // t_D = t - RotZ(yaw - yaw^) t^
+    const T c = cos(d_yaw);
+    const T s = sin(d_yaw);
+    residual[0] = (x[0] - (c * t_hat.x() - s * t_hat.y())) * inv_sigma_t_;
+    residual[1] = (x[1] - (s * t_hat.x() + c * t_hat.y())) * inv_sigma_t_;
+    residual[2] = (x[2] - t_hat.z()) * inv_sigma_t_;
+    residual[3] = atan2(s, c) * inv_sigma_yaw_;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Quaterniond& q_ca_wg,
+                                     const Eigen::Vector3d& t_ca_wg, double sigma_t,
+                                     double sigma_yaw) {
+    return new ceres::AutoDiffCostFunction<RelativePoseConsistencyError, 4, 4, 4, 3>(
+        new RelativePoseConsistencyError(q_ca_wg, t_ca_wg, sigma_t, sigma_yaw));
+  }
+
+ private:
+  Eigen::Quaterniond q_ca_wg_;
+  Eigen::Vector3d t_ca_wg_;
+  double inv_sigma_t_;
+  double inv_sigma_yaw_;
+};
+
+}  // namespace ag

@@ -1,0 +1,69 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "common/geometry/pose.h"
+
+namespace ag {
+
+/// What a relative-pose output says about its estimate.
+enum class FixStatus { kInitializing, kTracking, kLost };
+const char* ToString(FixStatus status);
+
+/// Decides which estimates become published fixes, so that one aliased
+/// match cannot produce a false fix: a first fix, or an estimate far from
+/// the current fix, is published only after `confirmations` consecutive
+/// estimates agree with it; estimates close to the current fix are
+/// published at once. Without any accepted estimate for `lost_after_s` the
+/// status becomes lost (the last fix is still reported).
+class FixGate {
+ public:
+  struct Options {
+    int confirmations = 2;             ///< consecutive agreeing estimates for a new fix
+    double agree_translation_m = 0.3;  ///< estimates closer than this agree (m)
+    double agree_yaw_deg = 2.0;        ///< ... and closer than this in yaw (deg)
+    double lost_after_s = 10.0;        ///< no accepted estimate for this long: lost (s)
+
+    template <class V>
+    void VisitFields(V& v) {
+      v("confirmations", confirmations);
+      v("agree_translation_m", agree_translation_m);
+      v("agree_yaw_deg", agree_yaw_deg);
+      v("lost_after_s", lost_after_s);
+    }
+    void Check() const;
+  };
+
+  struct Decision {
+    bool publish = false;  ///< this estimate becomes the published fix
+    FixStatus status = FixStatus::kInitializing;
+    std::string reason;  ///< e.g. "awaiting confirmation 1/2"
+  };
+
+  explicit FixGate(const Options& options);
+
+  /// Offers a successful estimate made at t_ns (ground clock).
+  Decision Offer(int64_t t_ns, const Pose& T_wa_wg);
+  /// Records that an estimation at t_ns failed (no fix candidate).
+  Decision Failed(int64_t t_ns);
+
+  FixStatus status() const { return status_; }
+  const std::optional<Pose>& fix() const { return fix_; }
+  std::optional<int64_t> last_fix_t_ns() const { return last_fix_t_ns_; }
+
+ private:
+  bool Agree(const Pose& a, const Pose& b) const;
+  void UpdateLost(int64_t t_ns);
+
+  Options options_;
+  FixStatus status_ = FixStatus::kInitializing;
+  std::optional<Pose> fix_;
+  std::optional<int64_t> last_fix_t_ns_;
+  std::optional<Pose> candidate_;  ///< newest unconfirmed estimate
+  int candidate_count_ = 0;
+};
+
+}  // namespace ag

@@ -1,0 +1,211 @@
+#include "ground_server/estimation/agent_estimator.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/core.hpp>
+#include <random>
+
+namespace ag {
+namespace {
+
+CameraParams Pinhole() {
+  CameraParams p;
+  p.width = 640;
+  p.height = 480;
+  p.fx = p.fy = 500;
+  p.cx = 320;
+  p.cy = 240;
+  return p;
+}
+
+Pose LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& target) {
+  const Eigen::Vector3d z = (target - position).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
+  Pose T = Pose::Identity();
+  T.linear().col(0) = x;
+  T.linear().col(1) = z.cross(x);
+  T.linear().col(2) = z;
+  T.translation() = position;
+  return T;
+}
+
+// A brute-force source: similarity = dot product of global descriptors.
+class VectorSource : public AirKeyframeSource {
+ public:
+  std::vector<std::shared_ptr<const AirKeyframe>> keyframes;
+  std::vector<Candidate> Retrieve(const std::vector<float>& global, const std::string& agent,
+                                  int k) const override {
+    std::vector<Candidate> out;
+    for (const auto& kf : keyframes) {
+      if (kf->agent != agent) continue;
+      double s = 0;
+      for (size_t i = 0; i < global.size(); ++i) s += global[i] * kf->global_descriptor[i];
+      out.push_back({kf, s});
+    }
+    std::sort(out.begin(), out.end(), [](auto& a, auto& b) { return a.similarity > b.similarity; });
+    if (static_cast<int>(out.size()) > k) out.resize(k);
+    return out;
+  }
+  std::vector<std::shared_ptr<const AirKeyframe>> Recent(const std::string& agent,
+                                                         int n) const override {
+    std::vector<std::shared_ptr<const AirKeyframe>> out;
+    for (auto it = keyframes.rbegin(); it != keyframes.rend() && static_cast<int>(out.size()) < n;
+         ++it) {
+      if ((*it)->agent == agent) out.push_back(*it);
+    }
+    return out;
+  }
+};
+
+struct World {
+  std::vector<Eigen::Vector3d> points;
+  cv::Mat descriptors;
+};
+
+World MakeWorld(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0, 1);
+  std::normal_distribution<float> g(0, 1);
+  World w;
+  for (int i = 0; i < 3000; ++i) {
+    if (i % 3 == 0) {
+      w.points.emplace_back(15.0, -6 + 12 * u(rng), 3 * u(rng));  // a wall
+    } else {
+      w.points.emplace_back(4 + 11 * u(rng), -6 + 12 * u(rng), 0.0);  // the ground
+    }
+  }
+  w.descriptors = cv::Mat(static_cast<int>(w.points.size()), 64, CV_32F);
+  for (int i = 0; i < w.descriptors.rows; ++i) {
+    for (int j = 0; j < 64; ++j) w.descriptors.at<float>(i, j) = g(rng);
+    cv::Mat row = w.descriptors.row(i);
+    cv::normalize(row, row);
+  }
+  return w;
+}
+
+// Keypoints of the world points a camera sees, with pixel and descriptor noise.
+LocalFeatures Observe(const World& w, const Camera& cam, const Pose& T_w_c, std::mt19937& rng,
+                      std::vector<int>* ids, double px_noise) {
+  std::normal_distribution<double> n(0, 1);
+  std::normal_distribution<float> g(0, 0.05f);
+  LocalFeatures f;
+  f.descriptor_type = "xfeat";
+  std::vector<cv::Mat> rows;
+  for (size_t i = 0; i < w.points.size() && f.keypoints.size() < 600; ++i) {
+    Eigen::Vector2d uv;
+    if (!cam.Project(T_w_c.inverse() * w.points[i], &uv) || !cam.InImage(uv, 2)) continue;
+    uv += px_noise * Eigen::Vector2d(n(rng), n(rng));
+    f.keypoints.push_back(uv.cast<float>());
+    f.scores.push_back(1.0f);
+    cv::Mat d = w.descriptors.row(static_cast<int>(i)).clone();
+    for (int j = 0; j < 64; ++j) d.at<float>(0, j) += g(rng);
+    cv::normalize(d, d);
+    rows.push_back(d);
+    ids->push_back(static_cast<int>(i));
+  }
+  cv::vconcat(rows, f.descriptors);
+  return f;
+}
+
+class AgentEstimatorTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    rng_.seed(3);
+    world_ = MakeWorld(rng_);
+    camera_ = std::make_shared<Camera>(Pinhole());
+    T_wa_wg_ = MakePose4Dof(20, -7, 1.5, 1.1);
+    std::normal_distribution<double> n(0, 1);
+    std::vector<float> place(512, 0.0f);
+    place[0] = 1.0f;
+    for (int i = 0; i < 3; ++i) {
+      auto kf = std::make_shared<UgvKeyframe>();
+      kf->id = i;
+      kf->t_ns = i * 500000000LL;
+      const Eigen::Vector3d pos(0.6 * i, 0.2 * i, 0.5);
+      kf->T_wg_c = LookAt(pos, pos + Eigen::Vector3d(1, 0, -0.08));
+      std::vector<int> ids;
+      kf->features = Observe(world_, *camera_, kf->T_wg_c, rng_, &ids, 0.3);
+      kf->global_descriptor = place;
+      for (size_t k = 0; k < ids.size(); ++k) {
+        kf->points_wg.push_back(world_.points[ids[k]] +
+                                0.01 * Eigen::Vector3d(n(rng_), n(rng_), n(rng_)));
+        kf->has_point.push_back(k % 5 != 0);  // some keypoints without depth
+      }
+      window_.push_back(kf);
+    }
+    for (int i = 0; i < 3; ++i) {
+      auto kf = std::make_shared<AirKeyframe>();
+      kf->agent = "uav";
+      kf->seq = i;
+      kf->t_ns = 1000000000LL * i;
+      kf->camera_id = "cam";
+      const Eigen::Vector3d pos_wg(8 + i, -2 + i, 9);
+      kf->T_wa_c = LookAt(T_wa_wg_ * pos_wg, T_wa_wg_ * Eigen::Vector3d(11, 0, 0));
+      std::vector<int> ids;
+      kf->features = Observe(world_, *camera_, T_wa_wg_.inverse() * kf->T_wa_c, rng_, &ids, 0.5);
+      kf->global_descriptor = place;
+      source_.keyframes.push_back(kf);
+    }
+  }
+
+  std::mt19937 rng_;
+  World world_;
+  std::shared_ptr<Camera> camera_;
+  Pose T_wa_wg_;
+  std::deque<std::shared_ptr<const UgvKeyframe>> window_;
+  VectorSource source_;
+};
+
+TEST_F(AgentEstimatorTest, RecoversTransformAndPublishesAfterConfirmation) {
+  AgentEstimator estimator("uav", EstimatorOptions{}, camera_);
+  estimator.SetAirCamera("cam", camera_);
+  const EstimateResult first = estimator.Estimate(0, window_, source_);
+  ASSERT_TRUE(first.success) << first.reason;
+  EXPECT_FALSE(first.gate.publish) << "a first estimate waits for confirmation";
+  const EstimateResult second = estimator.Estimate(1000000000LL, window_, source_);
+  ASSERT_TRUE(second.success) << second.reason;
+  EXPECT_TRUE(second.gate.publish);
+  EXPECT_EQ(second.gate.status, FixStatus::kTracking);
+  const double t_err = (second.T_wa_wg.translation() - T_wa_wg_.translation()).norm();
+  const double yaw_err =
+      std::abs(WrapAngle(ProjectedYaw(second.T_wa_wg.linear()) - 1.1)) * 180 / M_PI;
+  EXPECT_LT(t_err, 0.02);
+  EXPECT_LT(yaw_err, 0.1);
+  EXPECT_GT(second.inliers, 100);
+  EXPECT_GT(second.pairs, 3);
+  EXPECT_TRUE(second.has_covariance);
+  EXPECT_EQ(second.newest_air_t_ns, 2000000000LL);
+  std::printf("error %.4f m %.4f deg, %d inliers, %d pairs, %.1f ms (stage1 %.1f, stage2 %.1f)\n",
+              t_err, yaw_err, second.inliers, second.pairs, second.timing.total_ms,
+              second.timing.stage1_ms, second.timing.stage2_ms);
+}
+
+TEST_F(AgentEstimatorTest, AblationsRun) {
+  for (int config = 0; config < 3; ++config) {
+    EstimatorOptions o;
+    o.use_stage1 = config == 2;
+    o.stage2.use_reprojection = config >= 1;
+    AgentEstimator estimator("uav", o, camera_);
+    estimator.SetAirCamera("cam", camera_);
+    const EstimateResult r = estimator.Estimate(0, window_, source_);
+    ASSERT_TRUE(r.success) << config << ": " << r.reason;
+    EXPECT_LT((r.T_wa_wg.translation() - T_wa_wg_.translation()).norm(), 0.1) << config;
+  }
+}
+
+TEST_F(AgentEstimatorTest, ExplainsMissingCameraInfoAndEmptyWindow) {
+  AgentEstimator estimator("uav", EstimatorOptions{}, camera_);
+  EstimateResult r = estimator.Estimate(0, window_, source_);
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.reason.find("camera_info"), std::string::npos) << r.reason;
+  estimator.SetAirCamera("cam", camera_);
+  r = estimator.Estimate(0, {}, source_);
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.reason.find("no UGV keyframe"), std::string::npos);
+  AgentEstimator other("uav_2", EstimatorOptions{}, camera_);
+  other.SetAirCamera("cam", camera_);
+  r = other.Estimate(0, window_, source_);
+  EXPECT_FALSE(r.success) << "another agent's keyframes are never used";
+}
+
+}  // namespace
+}  // namespace ag

@@ -1,0 +1,64 @@
+#include "ground_server/estimation/fix_gate.h"
+
+#include <gtest/gtest.h>
+
+namespace ag {
+namespace {
+
+constexpr int64_t kS = 1000000000LL;
+
+TEST(FixGateTest, FirstFixNeedsConfirmation) {
+  FixGate gate({});
+  const Pose T = MakePose4Dof(1, 2, 3, 0.5);
+  auto d = gate.Offer(0, T);
+  EXPECT_FALSE(d.publish);
+  EXPECT_EQ(d.status, FixStatus::kInitializing);
+  EXPECT_NE(d.reason.find("1/2"), std::string::npos);
+  d = gate.Offer(1 * kS, MakePose4Dof(1.05, 2, 3, 0.51));
+  EXPECT_TRUE(d.publish);
+  EXPECT_EQ(d.status, FixStatus::kTracking);
+  // Close estimates publish at once.
+  EXPECT_TRUE(gate.Offer(2 * kS, MakePose4Dof(1.02, 2, 3, 0.5)).publish);
+}
+
+TEST(FixGateTest, SingleOutlierIsNeverPublished) {
+  FixGate gate({});
+  const Pose good = MakePose4Dof(1, 2, 3, 0.5);
+  gate.Offer(0, good);
+  ASSERT_TRUE(gate.Offer(kS, good).publish);
+  // An aliased estimate 5 m away, then good ones again.
+  EXPECT_FALSE(gate.Offer(2 * kS, MakePose4Dof(6, 2, 3, 0.5)).publish);
+  EXPECT_TRUE(gate.fix()->translation().isApprox(good.translation()));
+  EXPECT_TRUE(gate.Offer(3 * kS, good).publish);
+  // Alternating aliases never confirm each other.
+  FixGate fresh({});
+  for (int i = 0; i < 10; ++i) {
+    EXPECT_FALSE(fresh.Offer(i * kS, MakePose4Dof(i * 3.0, 0, 0, 0)).publish);
+  }
+  EXPECT_FALSE(fresh.fix().has_value());
+}
+
+TEST(FixGateTest, ConfirmedJumpReplacesTheFix) {
+  FixGate gate({});
+  gate.Offer(0, MakePose4Dof(0, 0, 0, 0));
+  gate.Offer(kS, MakePose4Dof(0, 0, 0, 0));
+  EXPECT_FALSE(gate.Offer(2 * kS, MakePose4Dof(2, 0, 0, 0)).publish);
+  EXPECT_TRUE(gate.Offer(3 * kS, MakePose4Dof(2, 0, 0, 0.01)).publish);
+  EXPECT_NEAR(gate.fix()->translation().x(), 2, 1e-12);
+}
+
+TEST(FixGateTest, LostAfterTimeoutAndReacquiredWithConfirmation) {
+  FixGate::Options o;
+  o.lost_after_s = 5;
+  FixGate gate(o);
+  gate.Offer(0, Pose::Identity());
+  gate.Offer(kS, Pose::Identity());
+  EXPECT_EQ(gate.Failed(3 * kS).status, FixStatus::kTracking);
+  EXPECT_EQ(gate.Failed(7 * kS).status, FixStatus::kLost);
+  EXPECT_FALSE(gate.Offer(8 * kS, Pose::Identity()).publish) << "re-acquisition is confirmed";
+  EXPECT_TRUE(gate.Offer(9 * kS, Pose::Identity()).publish);
+  EXPECT_EQ(gate.status(), FixStatus::kTracking);
+}
+
+}  // namespace
+}  // namespace ag
