@@ -23,6 +23,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -49,6 +51,11 @@ template <class T>
 struct IsVector : std::false_type {};
 template <class T, class A>
 struct IsVector<std::vector<T, A>> : std::true_type {};
+
+template <class T>
+struct IsFloatVector : std::false_type {};
+template <class T, class A>
+struct IsFloatVector<std::vector<T, A>> : std::is_floating_point<T> {};
 
 template <class T, class = void>
 struct HasCheck : std::false_type {};
@@ -142,12 +149,29 @@ class WriteVisitor {
       WriteVisitor nested(&child);
       const_cast<T&>(value).VisitFields(nested);
       (*node_)[key] = child;
+    } else if constexpr (std::is_floating_point_v<T>) {
+      (*node_)[key] = ShortestText(value);
+    } else if constexpr (IsFloatVector<T>::value) {
+      YAML::Node list(YAML::NodeType::Sequence);
+      for (const auto& v : value) list.push_back(ShortestText(v));
+      (*node_)[key] = list;
     } else {
       (*node_)[key] = value;
     }
   }
 
  private:
+  /// The shortest decimal text that reads back as the same number, so the
+  /// effective configuration shows 0.05, not 0.050000000000000003.
+  static YAML::Node ShortestText(double value) {
+    char buf[40];
+    for (int digits = 6; digits <= 17; ++digits) {
+      std::snprintf(buf, sizeof(buf), "%.*g", digits, value);
+      if (std::strtod(buf, nullptr) == value) break;
+    }
+    return YAML::Node(std::string(buf));
+  }
+
   YAML::Node* node_;
 };
 

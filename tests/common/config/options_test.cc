@@ -101,6 +101,8 @@ TEST(OptionsTest, EffectiveConfigRoundTrips) {
   o.name = "x y";
   const std::string text = OptionsToString(o);
   EXPECT_NE(text.find("top_k: 77"), std::string::npos) << text;
+  // Doubles print as the shortest text that reads back exactly.
+  EXPECT_NE(text.find("voxel_size_m: 0.1\n"), std::string::npos) << text;
   const auto back = LoadOptions<OuterOptions>(YAML::Load(text), "dump");
   EXPECT_EQ(back.top_k, 77);
   EXPECT_EQ(back.map.sizes, std::vector<int>{9});
