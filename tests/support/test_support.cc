@@ -16,6 +16,10 @@ std::optional<std::string> SharedDir() {
       return fs::canonical(value).string();
     }
   }
+#ifdef AG_DEFAULT_SHARED_DIR_PATH
+  if (fs::is_directory(AG_DEFAULT_SHARED_DIR_PATH))
+    return fs::canonical(AG_DEFAULT_SHARED_DIR_PATH).string();
+#endif
   return std::nullopt;
 }
 
