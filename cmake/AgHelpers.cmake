@@ -56,8 +56,7 @@ function(ag_add_test name)
   endif()
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_LIBS} ag_test_support GTest::gtest GTest::gtest_main ag_build_flags)
-  gtest_discover_tests(${name}
-    DISCOVERY_TIMEOUT 60
-    PROPERTIES TIMEOUT ${ARG_TIMEOUT}
-               ENVIRONMENT "AG_DEFAULT_SHARED_DIR=${AG_DEFAULT_SHARED_DIR};AG_BUILD_DIR=${PROJECT_BINARY_DIR};AG_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
+  # Paths (../shared, build and source folders) are compiled into
+  # ag_test_support, so a test runs the same from ctest or by hand.
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES TIMEOUT ${ARG_TIMEOUT})
 endfunction()

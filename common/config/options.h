@@ -102,7 +102,7 @@ class ReadVisitor {
         std::string hint;
         for (const std::string& s : seen_) hint += (hint.empty() ? "" : ", ") + s;
         throw InputError(InputErrorKind::kUnknownKey, source_, kv.first.Mark().line + 1,
-                         "unknown key '" + prefix_ + key + "' (known: " + hint + ")");
+                         "'" + prefix_ + key + "' is not an option here (known: " + hint + ")");
       }
     }
   }

@@ -31,6 +31,9 @@ std::optional<std::string> SharedPath(const std::string& relative) {
   return path.string();
 }
 
+std::string SourceDir() { return AG_SOURCE_DIR_PATH; }
+std::string BuildDir() { return AG_BUILD_DIR_PATH; }
+
 TempDir::TempDir() {
   std::random_device rd;
   for (int attempt = 0; attempt < 100; ++attempt) {

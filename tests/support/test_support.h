@@ -13,6 +13,10 @@ std::optional<std::string> SharedDir();
 /// absent.
 std::optional<std::string> SharedPath(const std::string& relative);
 
+/// The source checkout and the build folder this test was built in.
+std::string SourceDir();
+std::string BuildDir();
+
 /// A fresh empty temporary directory, removed by the destructor.
 class TempDir {
  public:

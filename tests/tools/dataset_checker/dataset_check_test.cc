@@ -223,9 +223,9 @@ TEST(DatasetCheckTool, WrapperScript) {
   test::TempDir dir;
   WriteDataset(dir / "ds");
   std::string out;
-  // The script finds the binary in AG_BUILD_DIR (ctest sets it) ...
-  const char* build_dir = std::getenv("AG_BUILD_DIR");
-  if (build_dir != nullptr) {
+  // The script finds the binary in AG_BUILD_DIR ...
+  const std::string build_dir = test::BuildDir();
+  {
     EXPECT_EQ(RunShell(std::string("AG_BUILD_DIR=\"") + build_dir + "\" " +
                            AG_CHECK_DATASET_SCRIPT + " --quick " + (dir / "ds"),
                        dir / "log", &out),
