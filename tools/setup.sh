@@ -11,7 +11,7 @@ PACKAGES=(
   build-essential cmake pkg-config ccache git
   libeigen3-dev libopencv-dev libceres-dev libpcl-dev
   liblcm-dev liblcm-bin liblcm-java libjchart2d-java libglib2.0-dev default-jdk-headless
-  libspdlog-dev libyaml-cpp-dev libcli11-dev libhnswlib-dev libfaiss-dev
+  libspdlog-dev libyaml-cpp-dev libcli11-dev libhnswlib-dev libfaiss-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-onnx
   iproute2 clang-format clang-tidy

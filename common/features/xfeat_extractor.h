@@ -1,0 +1,73 @@
+#pragma once
+
+// XFeat (Potje et al., "XFeat: Accelerated Features for Lightweight Image
+// Matching", CVPR 2024) through OpenCV DNN. The post-processing reproduces the
+// authors' XFeat.detectAndCompute (verlab/accelerated_features,
+// modules/xfeat.py): softmax over 65 logits per 8x8 cell, pixel-shuffle of the
+// 64 keypoint channels into a full-resolution heatmap, 5x5 NMS above a
+// threshold, score = heatmap x reliability, top-k, descriptors sampled from
+// the 1/8-resolution map and L2-normalised.
+
+#include <mutex>
+#include <opencv2/dnn.hpp>
+#include <string>
+
+#include "common/features/feature_extractor.h"
+#include "common/features/letterbox.h"
+
+namespace ag {
+
+/// XFeat keypoints and 64-D descriptors. The model has a fixed 640x640
+/// input: images are letterboxed into it and keypoints mapped back.
+class XFeatExtractor : public FeatureExtractor {
+ public:
+  static constexpr int kInputSize = 640;  ///< network input width = height (px)
+  static constexpr int kCell = 8;         ///< output stride (px)
+  static constexpr int kDim = 64;         ///< descriptor length
+
+  /// Loads the ONNX model; throws std::runtime_error naming `model_path`
+  /// when it is absent or cannot be loaded, or lacks the expected outputs.
+  XFeatExtractor(const std::string& model_path, const FeatureOptions& options);
+
+  LocalFeatures Extract(const cv::Mat& image) const override;
+  int descriptor_dim() const override { return kDim; }
+  std::string type() const override { return "xfeat"; }
+
+ private:
+  std::string model_path_;
+  FeatureOptions options_;
+  mutable std::mutex mutex_;  ///< cv::dnn::Net::forward is not re-entrant
+  mutable cv::dnn::Net net_;
+};
+
+namespace internal {
+
+/// Post-processing settings of DecodeXFeat.
+struct XFeatDecodeOptions {
+  int top_k = 1024;
+  float detection_threshold = 0.05f;
+  int nms_kernel_px = 5;
+};
+
+/// Keypoints in network pixels, sorted by decreasing score.
+struct XFeatDecoded {
+  std::vector<Eigen::Vector2f> keypoints;  ///< network px (integer positions)
+  std::vector<float> scores;
+  cv::Mat descriptors;  ///< N x 64 CV_32F, rows L2-normalised
+};
+
+/// Decodes raw XFeat outputs of one image (all CHW, cells = H/8 x W/8 of
+/// the network input): `descriptors` 64 x cells, `logits` 65 x cells,
+/// `reliability` 1 x cells. Only keypoints inside `content` (network px,
+/// from the top-left) are kept. `logits` is used as scratch (overwritten).
+/// Ties in score are broken by (y, x) so that the result is deterministic.
+XFeatDecoded DecodeXFeat(const float* descriptors, float* logits, const float* reliability,
+                         cv::Size cells, cv::Size content, const XFeatDecodeOptions& options);
+
+/// Bilinear sample of a single-channel CV_32F map at continuous position
+/// (u, v) in map pixels (centre of pixel (0,0) is (0,0)), clamped to the map.
+float SampleBilinear(const cv::Mat& map, float u, float v);
+
+}  // namespace internal
+
+}  // namespace ag
