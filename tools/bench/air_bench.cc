@@ -1,0 +1,196 @@
+// air_bench: what the air link costs and what quantisation loses.
+// For 128/256/512/1024 keypoints and each descriptor encoding: bytes per
+// keyframe packet (LCM message and IP bytes on the link), Mbit/s at 1 Hz,
+// and matching precision relative to float32 on image pairs with known
+// geometry (real images warped by random homographies); plus extraction
+// time per frame of each extractor. Prints tables; asserts nothing.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "common/features/feature_extractor.h"
+#include "common/wire/channels.h"
+#include "common/wire/keyframe_codec.h"
+#include "common/wire/link_bytes.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ag::ArrayEncoding;
+
+struct Pair {
+  cv::Mat a, b;
+  cv::Mat H;  // maps pixels of a into b
+};
+
+// A random homography that keeps most of the image in view.
+cv::Mat RandomHomography(const cv::Size& size, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<cv::Point2f> src = {{0, 0},
+                                  {static_cast<float>(size.width), 0},
+                                  {static_cast<float>(size.width), static_cast<float>(size.height)},
+                                  {0, static_cast<float>(size.height)}};
+  std::vector<cv::Point2f> dst;
+  const double jitter = 0.12 * std::min(size.width, size.height);
+  for (const auto& p : src) dst.emplace_back(p.x + jitter * u(rng), p.y + jitter * u(rng));
+  return cv::getPerspectiveTransform(src, dst);
+}
+
+// Fraction of mutual-NN + ratio matches whose keypoint in b lies within
+// 3 px of where H maps the keypoint of a, and their number.
+std::pair<double, int> Precision(const ag::LocalFeatures& a, const cv::Mat& a_desc,
+                                 const ag::LocalFeatures& b, const cv::Mat& H) {
+  cv::BFMatcher matcher(cv::NORM_L2, true);
+  std::vector<cv::DMatch> matches;
+  matcher.match(a_desc, b.descriptors, matches);
+  int correct = 0;
+  for (const auto& m : matches) {
+    const cv::Mat p =
+        (cv::Mat_<double>(3, 1) << a.keypoints[m.queryIdx].x(), a.keypoints[m.queryIdx].y(), 1.0);
+    const cv::Mat q = H * p;
+    const double dx = q.at<double>(0) / q.at<double>(2) - b.keypoints[m.trainIdx].x();
+    const double dy = q.at<double>(1) / q.at<double>(2) - b.keypoints[m.trainIdx].y();
+    correct += dx * dx + dy * dy <= 9.0;
+  }
+  return {matches.empty() ? 0.0 : static_cast<double>(correct) / matches.size(), correct};
+}
+
+double MedianMs(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "air_bench: packet bytes, Mbps at 1 Hz, quantised matching precision, extraction time"};
+  std::string images_dir =
+      "../shared/data/kitti_raw_2011_09_26_drive_0001_mini/2011_09_26/"
+      "2011_09_26_drive_0001_sync/image_02/data";
+  std::string model;
+  int warps = 3;
+  app.add_option("--images", images_dir, "folder of real images (PNG/JPEG) to warp");
+  app.add_option("--model", model, "XFeat ONNX model (else $AG_XFEAT_MODEL; absent: SIFT only)");
+  app.add_option("--warps", warps, "homography warps per image");
+  CLI11_PARSE(app, argc, argv);
+
+  std::vector<cv::Mat> images;
+  if (fs::is_directory(images_dir)) {
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(images_dir)) files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files) {
+      cv::Mat img = cv::imread(f.string(), cv::IMREAD_GRAYSCALE);
+      if (!img.empty()) images.push_back(img);
+    }
+  }
+  if (images.empty()) {
+    std::fprintf(stderr, "air_bench: no images in %s (use --images)\n", images_dir.c_str());
+    return 2;
+  }
+  std::mt19937 rng(1);
+  std::vector<Pair> pairs;
+  for (const cv::Mat& img : images) {
+    for (int w = 0; w < warps; ++w) {
+      Pair p;
+      p.a = img;
+      p.H = RandomHomography(img.size(), rng);
+      cv::warpPerspective(img, p.b, p.H, img.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+      pairs.push_back(p);
+    }
+  }
+
+  std::printf(
+      "Air keyframe packet size (64-D descriptors, 512-D global descriptor float16, agent "
+      "'uav0')\n");
+  std::printf(
+      "| keypoints | encoding | LCM message (B) | on the link, IPv4 (B) | Mbps at 1 Hz | paper "
+      "(float32) Mbps |\n");
+  std::printf("|---|---|---|---|---|---|\n");
+  const std::vector<int> counts = {128, 256, 512, 1024};
+  const std::vector<ArrayEncoding> encodings = {ArrayEncoding::kFloat32, ArrayEncoding::kFloat16,
+                                                ArrayEncoding::kInt8, ArrayEncoding::kBits4};
+  for (int n : counts) {
+    for (ArrayEncoding e : encodings) {
+      ag::PacketFormat f;
+      f.descriptors = e;
+      f.global = ArrayEncoding::kFloat16;
+      const int64_t size = ag::EncodedKeyframeSize("uav0", "cam0", "xfeat", n, 64, 512, f);
+      const ag::LinkBytes link = ag::LcmLinkBytes(ag::AirKeyframeChannel("uav0"), size);
+      const double paper = 4.0 * (2 * n + 64 * n + 7 + 512) * 8 / 1e6;
+      std::printf("| %d | %s | %lld | %lld | %.3f | %.2f |\n", n, ag::ToString(e),
+                  static_cast<long long>(size), static_cast<long long>(link.ip),
+                  link.ip * 8.0 / 1e6, paper);
+    }
+  }
+
+  for (const std::string backend : {"xfeat", "sift"}) {
+    ag::FeatureOptions fo;
+    fo.backend = backend;
+    fo.model_path = model;
+    if (backend == "xfeat" && ag::ResolveXFeatModelPath(model).empty()) {
+      std::printf("\n(%s skipped: no model; pass --model or set AG_XFEAT_MODEL)\n",
+                  backend.c_str());
+      continue;
+    }
+    std::printf(
+        "\nMatching precision of quantised descriptors vs float32, %s, %zu pairs (%zu real images "
+        "x %d homographies), "
+        "3 px, mutual nearest neighbour\n",
+        backend.c_str(), pairs.size(), images.size(), warps);
+    std::printf(
+        "| keypoints | extraction ms (median) | float32 precision | encoding | precision | "
+        "relative to float32 | correct matches relative |\n");
+    std::printf("|---|---|---|---|---|---|---|\n");
+    for (int n : counts) {
+      fo.top_k = n;
+      const auto extractor = ag::CreateFeatureExtractor(fo);
+      if (extractor->type() != backend) break;  // fell back
+      std::vector<double> times;
+      std::vector<ag::LocalFeatures> fa, fb;
+      for (const Pair& p : pairs) {
+        const auto t0 = std::chrono::steady_clock::now();
+        fa.push_back(extractor->Extract(p.a));
+        times.push_back(
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                .count());
+        fb.push_back(extractor->Extract(p.b));
+      }
+      double base_prec = 0;
+      int base_correct = 0;
+      for (ArrayEncoding e : encodings) {
+        double prec_sum = 0;
+        int correct = 0;
+        for (size_t i = 0; i < pairs.size(); ++i) {
+          cv::Mat desc;
+          std::string error;
+          ag::DequantizeArray(ag::QuantizeArray(fa[i].descriptors, e), &desc, &error);
+          for (int r = 0; r < desc.rows; ++r) {
+            cv::Mat row = desc.row(r);
+            cv::normalize(row, row);
+          }
+          const auto [p, c] = Precision(fa[i], desc, fb[i], pairs[i].H);
+          prec_sum += p;
+          correct += c;
+        }
+        const double prec = prec_sum / pairs.size();
+        if (e == ArrayEncoding::kFloat32) {
+          base_prec = prec;
+          base_correct = correct;
+        }
+        std::printf("| %d | %.1f | %.4f | %s | %.4f | %.4f | %.4f |\n", n, MedianMs(times),
+                    base_prec, ag::ToString(e), prec, base_prec > 0 ? prec / base_prec : 0.0,
+                    base_correct > 0 ? static_cast<double>(correct) / base_correct : 0.0);
+      }
+    }
+  }
+  return 0;
+}
