@@ -1,0 +1,315 @@
+#include "tools/evaluation/evaluator.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <deque>
+
+#include "common/config/options.h"
+#include "common/geometry/tum_io.h"
+#include "common/pcd/pcd_io.h"
+#include "common/wire/channels.h"
+#include "lcmtypes/checked_decode.h"
+
+namespace ag {
+namespace {
+
+constexpr int64_t kSecond = 1000000000LL;
+
+int64_t SecondsToNs(double s) { return static_cast<int64_t>(std::llround(s * 1e9)); }
+
+// A dataset item in the merged timeline. Equal times: odometry first, so a
+// sensor sample at the same time can already be posed.
+struct Event {
+  enum Type { kGroundOdometry = 0, kScan = 1, kUgvImage = 2, kAirImage = 3 };
+  int64_t t_ns = 0;  // body time
+  Type type = kGroundOdometry;
+  int agent = 0;     // index into air agents (kAirImage)
+  size_t index = 0;  // into the agent's poses / scans / images
+  bool operator<(const Event& o) const {
+    if (t_ns != o.t_ns) return t_ns < o.t_ns;
+    if (type != o.type) return type < o.type;
+    if (agent != o.agent) return agent < o.agent;
+    return index < o.index;
+  }
+};
+
+struct AirAgentState {
+  std::string name;
+  const AgentData* data = nullptr;
+  std::unique_ptr<AirFrontend> frontend;
+  std::unique_ptr<AgentEstimator> estimator;
+  std::optional<Pose> truth;
+};
+
+}  // namespace
+
+void EvaluateOptions::Check() const {
+  CheckOption(ugv_keyframe_period_s > 0, "ugv_keyframe_period_s", "must be > 0");
+  CheckOption(window_size >= 1, "window_size", "must be >= 1");
+  CheckOption(estimate_period_s > 0, "estimate_period_s", "must be > 0");
+  CheckOption(max_duration_s >= 0, "max_duration_s", "must be >= 0");
+}
+
+EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options,
+                          const ProgressFn& progress) {
+  CheckOptions(options);
+  EvaluationResult result;
+  const std::unique_ptr<FeatureExtractor> features = CreateFeatureExtractor(options.features);
+  const std::unique_ptr<GlobalDescriptorExtractor> global =
+      CreateGlobalDescriptorExtractor(options.global_descriptor, features->type());
+
+  const UgvFrontend ugv(dataset.ground.calibration, features.get(), global.get(), options.ugv);
+  OdometryBuffer::Options odom_options;
+  odom_options.max_poses = static_cast<int>(dataset.ground.odometry.size()) + 2;
+  OdometryBuffer odometry(odom_options);
+  VoxelMap map(options.map);
+  VoxelMapBuilder builder(&map);
+  PlaceDb db(options.place_db);
+  const PlaceDbSource source(&db);
+
+  std::vector<AirAgentState> air;
+  for (const auto& [name, data] : dataset.air) {
+    AirAgentState s;
+    s.name = name;
+    s.data = &data;
+    s.frontend = std::make_unique<AirFrontend>(name, options.air, data.calibration.camera,
+                                               features.get(), global.get());
+    s.estimator = std::make_unique<AgentEstimator>(name, options.estimator, ugv.camera());
+    // The ground learns the UAV camera from camera_info; offline it is the
+    // same calibration.
+    s.estimator->SetAirCamera(options.air.camera_id,
+                              std::make_shared<Camera>(data.calibration.camera.camera));
+    if (dataset.groundtruth && dataset.groundtruth->T_wa_wg.count(name)) {
+      s.truth = dataset.groundtruth->T_wa_wg.at(name);
+    }
+    air.push_back(std::move(s));
+  }
+
+  // The merged timeline.
+  const CameraCalibration& ugv_cam = dataset.ground.calibration.camera;
+  const double lidar_offset_s =
+      dataset.ground.calibration.lidar ? dataset.ground.calibration.lidar->time_offset_s : 0.0;
+  std::vector<Event> events;
+  for (size_t i = 0; i < dataset.ground.odometry.size(); ++i) {
+    events.push_back({dataset.ground.odometry[i].t_ns, Event::kGroundOdometry, 0, i});
+  }
+  for (size_t i = 0; i < dataset.ground.scans.size(); ++i) {
+    events.push_back(
+        {dataset.ground.scans[i].t_ns + SecondsToNs(lidar_offset_s), Event::kScan, 0, i});
+  }
+  int64_t last_ugv = std::numeric_limits<int64_t>::min();
+  for (size_t i = 0; i < dataset.ground.images.size(); ++i) {
+    const int64_t t = dataset.ground.images[i].t_ns;
+    if (last_ugv != std::numeric_limits<int64_t>::min() &&
+        t - last_ugv < SecondsToNs(options.ugv_keyframe_period_s) - kSecond / 1000) {
+      continue;
+    }
+    last_ugv = t;
+    events.push_back({t + SecondsToNs(ugv_cam.time_offset_s), Event::kUgvImage, 0, i});
+  }
+  for (size_t a = 0; a < air.size(); ++a) {
+    const double offset = air[a].data->calibration.camera.time_offset_s;
+    for (size_t i = 0; i < air[a].data->images.size(); ++i) {
+      events.push_back({air[a].data->images[i].t_ns + SecondsToNs(offset), Event::kAirImage,
+                        static_cast<int>(a), i});
+    }
+  }
+  std::sort(events.begin(), events.end());
+  if (events.empty()) throw std::runtime_error("dataset " + dataset.dir + " holds no data");
+  const int64_t t0 = events.front().t_ns;
+  int64_t t_end = events.back().t_ns;
+  if (options.max_duration_s > 0) t_end = std::min(t_end, t0 + SecondsToNs(options.max_duration_s));
+  result.t0_ns = t0;
+
+  ReportInput report;
+  report.dataset = dataset.dir;
+  report.config = YamlToJson(OptionsToYaml(options));
+  report.has_groundtruth = dataset.groundtruth.has_value();
+  for (const auto& s : air) report.agents[s.name];
+
+  std::deque<std::shared_ptr<const UgvKeyframe>> window;
+  std::deque<Event> pending;  // scans and UGV images waiting for odometry
+  std::optional<int64_t> last_estimate;
+  int64_t ugv_id = 0;
+
+  auto run_estimates = [&](int64_t t_ns) {
+    for (AirAgentState& s : air) {
+      const EstimateResult r = s.estimator->Estimate(t_ns, window, source);
+      report.timing.retrieval.push_back(r.timing.retrieval_ms);
+      EstimateLog log;
+      log.t_ns = t_ns;
+      log.success = r.success;
+      log.published = r.gate.publish;
+      log.reason = r.success ? r.gate.reason : r.reason;
+      log.T_wa_wg = r.T_wa_wg;
+      log.inliers = r.inliers;
+      if (r.success) {
+        report.timing.estimate.push_back(r.timing.total_ms);
+        report.timing.stage1.push_back(r.timing.stage1_ms);
+        report.timing.stage2.push_back(r.timing.stage2_ms);
+        if (s.truth) log.error = FourDofError(r.T_wa_wg, *s.truth);
+      }
+      if (r.gate.publish) {
+        report.agents[s.name].fixes.push_back({t_ns, r.T_wa_wg, log.error});
+      }
+      spdlog::debug("estimate {} t={:.1f}: {} {}", s.name, 1e-9 * (t_ns - t0),
+                    r.success ? "ok" : "failed", log.reason);
+      result.estimates[s.name].push_back(log);
+    }
+  };
+
+  // Handles pending ground items whose pose is now known, in time order.
+  auto drain_pending = [&]() {
+    while (!pending.empty()) {
+      const Event e = pending.front();
+      if (e.type == Event::kScan) {
+        const SensorFrame& frame = dataset.ground.scans[e.index];
+        PosedScan scan;
+        const PoseLookupStatus st = ugv.PoseScan(frame.t_ns, {}, odometry, &scan);
+        if (st == PoseLookupStatus::kWait) return;
+        pending.pop_front();
+        if (st != PoseLookupStatus::kOk) continue;
+        scan.points_l = ReadScan(frame.path).points;
+        builder.Process(scan);
+      } else {
+        const SensorFrame& frame = dataset.ground.images[e.index];
+        if (odometry.SensorPoseAt(frame.t_ns, {ugv_cam.T_body_camera, ugv_cam.time_offset_s})
+                .status == PoseLookupStatus::kWait) {
+          return;
+        }
+        pending.pop_front();
+        const UgvFrontend::Result r = ugv.Process(
+            ugv_id++, frame.t_ns, LoadImage(frame, cv::IMREAD_UNCHANGED), odometry, map);
+        if (r.status != PoseLookupStatus::kOk) continue;
+        report.timing.depth_association_per_keyframe.push_back(r.depth_ms);
+        window.push_back(r.keyframe);
+        while (static_cast<int>(window.size()) > options.window_size) window.pop_front();
+        if (!last_estimate || frame.t_ns - *last_estimate >=
+                                  SecondsToNs(options.estimate_period_s) - kSecond / 1000) {
+          last_estimate = frame.t_ns;
+          run_estimates(frame.t_ns);
+        }
+      }
+    }
+  };
+
+  for (const Event& e : events) {
+    if (e.t_ns > t_end) break;
+    switch (e.type) {
+      case Event::kGroundOdometry:
+        odometry.Add(dataset.ground.odometry[e.index]);
+        drain_pending();
+        break;
+      case Event::kScan:
+      case Event::kUgvImage:
+        pending.push_back(e);
+        drain_pending();
+        break;
+      case Event::kAirImage: {
+        AirAgentState& s = air[e.agent];
+        const SensorFrame& frame = s.data->images[e.index];
+        const InterpolationResult vio = InterpolateInBuffer(s.data->odometry, e.t_ns);
+        if (!vio.ok()) break;
+        AgentRecord& rec = report.agents[s.name];
+        if (s.frontend->CameraInfoDue(frame.t_ns)) {
+          const auto info = s.frontend->CameraInfo(frame.t_ns);
+          const LinkBytes b =
+              LcmLinkBytes(AirCameraInfoChannel(s.name), info.getEncodedSize(), options.air.mtu);
+          rec.bytes_sent += b.lcm_udp;
+          rec.bytes_ip += b.ip;
+          rec.packets.emplace_back(frame.t_ns, b.ip);
+        }
+        const AirFrontend::Output out = s.frontend->ProcessFrame(
+            frame.t_ns, [&] { return LoadImage(frame, cv::IMREAD_UNCHANGED); }, vio.T);
+        if (out.features_ms > 0) report.timing.air_features_per_frame.push_back(out.features_ms);
+        if (!out.gave_up.empty()) spdlog::debug("{}: {}", s.name, out.gave_up);
+        if (!out.keyframe) break;
+        // Through the wire: encode to bytes, decode as the ground would.
+        std::vector<uint8_t> bytes(out.encoded_bytes);
+        out.packet.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+        aglcm::air_keyframe_t received;
+        if (DecodeChecked(bytes.data(), static_cast<int>(bytes.size()), &received) < 0) {
+          throw std::logic_error("evaluator: own packet does not decode");
+        }
+        const DecodedKeyframe decoded = DecodeKeyframe(received);
+        if (!decoded.ok) throw std::logic_error("evaluator: " + decoded.error);
+        const PlaceDb::InsertResult ins = db.Insert(decoded.keyframe);
+        if (!ins.success)
+          spdlog::warn("{}: keyframe {} not stored: {}", s.name, received.seq, ins.reason);
+        ++rec.packets_sent;
+        rec.bytes_sent += out.link.lcm_udp;
+        rec.bytes_ip += out.link.ip;
+        rec.packets.emplace_back(frame.t_ns, out.link.ip);
+        if (!rec.first_packet_t_ns) rec.first_packet_t_ns = frame.t_ns;
+        break;
+      }
+    }
+    if (progress)
+      progress(1e-9 * static_cast<double>(e.t_ns - t0), 1e-9 * static_cast<double>(t_end - t0));
+  }
+  drain_pending();
+
+  result.agents = report.agents;
+  result.report = MakeReport(report);
+  return result;
+}
+
+}  // namespace ag
+
+namespace ag {
+
+void WriteTrajectoryOutputs(const Dataset& dataset, const EvaluationResult& result,
+                            const std::string& out_prefix, bool plots) {
+  const double t0 = 1e-9 * static_cast<double>(result.t0_ns);
+  for (const auto& [name, record] : result.agents) {
+    const AgentData& agent = dataset.air.at(name);
+    // Mapped UAV trajectory with the fix in force at each VIO time.
+    std::vector<StampedPose> mapped;
+    size_t fix = 0;
+    for (const StampedPose& p : agent.odometry) {
+      while (fix + 1 < record.fixes.size() && record.fixes[fix + 1].t_ns <= p.t_ns) ++fix;
+      if (record.fixes.empty() || record.fixes[fix].t_ns > p.t_ns) continue;
+      mapped.push_back({p.t_ns, record.fixes[fix].T_wa_wg.inverse() * p.T});
+    }
+    WriteTum(out_prefix + name + "_mapped.tum", mapped,
+             "UAV " + name +
+                 " body poses mapped into the ground world (T_wg_body) with the "
+                 "published T_wa_wg in force; timestamp tx ty tz qx qy qz qw");
+    if (!plots) continue;
+    std::vector<PlotSeries> series;
+    PlotSeries ugv{"UGV (odometry)", {}, 60, 160, 60};
+    for (const auto& p : dataset.ground.odometry)
+      ugv.points.emplace_back(p.T.translation().head<2>());
+    series.push_back(ugv);
+    const auto truth_it = dataset.groundtruth ? dataset.groundtruth->T_wa_wg.find(name)
+                                              : std::map<std::string, Pose>::const_iterator();
+    if (dataset.groundtruth && truth_it != dataset.groundtruth->T_wa_wg.end() &&
+        !agent.groundtruth.empty()) {
+      PlotSeries truth{"UAV truth", {}, 80, 80, 80};
+      for (const auto& p : agent.groundtruth) {
+        truth.points.emplace_back((truth_it->second.inverse() * p.T).translation().head<2>());
+      }
+      series.push_back(truth);
+    }
+    PlotSeries est{"UAV mapped with fixes", {}, 200, 90, 30};
+    for (const auto& p : mapped) est.points.emplace_back(p.T.translation().head<2>());
+    series.push_back(est);
+    WritePlot(out_prefix + name + "_trajectory.png", "Trajectories in the ground world: " + name,
+              "x (m)", "y (m)", series, true);
+    PlotSeries t_err{"translation error (cm)", {}, 200, 90, 30, true};
+    PlotSeries y_err{"yaw error (deg)", {}, 40, 40, 200, true};
+    for (const auto& f : record.fixes) {
+      if (!f.error) continue;
+      const double t = 1e-9 * static_cast<double>(f.t_ns) - t0;
+      t_err.points.emplace_back(t, 100.0 * f.error->translation_m);
+      y_err.points.emplace_back(t, f.error->yaw_deg);
+    }
+    if (!t_err.points.empty()) {
+      WritePlot(out_prefix + name + "_errors.png", "Error of published fixes: " + name, "time (s)",
+                "error", {t_err, y_err}, false);
+    }
+  }
+}
+
+}  // namespace ag

@@ -1,0 +1,85 @@
+#pragma once
+
+// Offline evaluation: the air agent's encoder and the ground server's
+// estimator in one process, over a dataset, deterministically (single
+// thread, data in time order, nothing from the future), at the keyframe
+// rates of the live system. Produces the report of ../shared/spec/report.md.
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "air_agent/frontend/air_frontend.h"
+#include "common/dataset/dataset.h"
+#include "ground_server/estimation/agent_estimator.h"
+#include "ground_server/pipeline/ugv_frontend.h"
+#include "ground_server/place_db/place_db.h"
+#include "ground_server/voxel_map/voxel_map.h"
+#include "tools/evaluation/plots.h"
+#include "tools/evaluation/report.h"
+
+namespace ag {
+
+struct EvaluateOptions {
+  FeatureOptions features;                    ///< both agents use the same extractor
+  GlobalDescriptorOptions global_descriptor;  ///< both agents use the same place descriptor
+  AirFrontend::Options air;                   ///< keyframes, governor, encodings
+  double ugv_keyframe_period_s = 0.5;         ///< UGV keyframes for the sliding window (s)
+  int window_size = 5;                        ///< UGV keyframes in the sliding window
+  double estimate_period_s = 1.0;             ///< relative-pose estimates per agent (s)
+  UgvFrontend::Options ugv;                   ///< depth association
+  VoxelMap::Options map;                      ///< the LiDAR map
+  PlaceDb::Options place_db;                  ///< UAV keyframe database
+  EstimatorOptions estimator;                 ///< matching, RANSAC, stages, gate
+  double max_duration_s = 0.0;                ///< stop after this much data (0 = all)
+
+  template <class V>
+  void VisitFields(V& v) {
+    v("features", features);
+    v("global_descriptor", global_descriptor);
+    v("air", air);
+    v("ugv_keyframe_period_s", ugv_keyframe_period_s);
+    v("window_size", window_size);
+    v("estimate_period_s", estimate_period_s);
+    v("ugv", ugv);
+    v("map", map);
+    v("place_db", place_db);
+    v("estimator", estimator);
+    v("max_duration_s", max_duration_s);
+  }
+  void Check() const;
+};
+
+/// One estimate as the evaluation saw it (published or not).
+struct EstimateLog {
+  int64_t t_ns = 0;
+  bool success = false;
+  bool published = false;
+  std::string reason;
+  Pose T_wa_wg;
+  std::optional<PoseError> error;
+  int inliers = 0;
+};
+
+struct EvaluationResult {
+  nlohmann::json report;
+  std::map<std::string, std::vector<EstimateLog>> estimates;  ///< per agent
+  std::map<std::string, AgentRecord> agents;
+  int64_t t0_ns = 0;  ///< first data time, for plots
+};
+
+/// Progress: data time done and total (s).
+using ProgressFn = std::function<void(double done_s, double total_s)>;
+
+EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options,
+                          const ProgressFn& progress = {});
+
+/// Writes, per air agent, the UAV trajectory mapped into the ground world with
+/// the fix in force at each time (TUM, T_wg_body; poses before the first fix
+/// are left out), and PNG plots: trajectories (UAV truth, UAV mapped, UGV)
+/// seen from above, and the errors of the published fixes over time.
+void WriteTrajectoryOutputs(const Dataset& dataset, const EvaluationResult& result,
+                            const std::string& out_prefix, bool plots);
+
+}  // namespace ag

@@ -1,0 +1,82 @@
+#pragma once
+
+// The evaluation report of ../shared/spec/report.md (field names kept
+// exactly), built from what an evaluation run records.
+
+#include <yaml-cpp/yaml.h>
+
+#include <cstdint>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/geometry/pose.h"
+
+namespace ag {
+
+/// Order statistics of a sample (all zero when empty).
+struct SampleStats {
+  double median = 0, mean = 0, p95 = 0, max = 0;
+  size_t count = 0;
+};
+SampleStats ComputeStats(std::vector<double> values);
+
+/// Translation (m) and yaw (deg) error of an estimated T_wa_wg, as the
+/// paper and the report spec measure them.
+struct PoseError {
+  double translation_m = 0;
+  double yaw_deg = 0;
+};
+PoseError FourDofError(const Pose& estimate, const Pose& truth);
+
+/// Per air agent, what the run recorded.
+struct AgentRecord {
+  int64_t packets_sent = 0;
+  int64_t bytes_sent = 0;  ///< LCM UDP payload bytes (what LCM puts on the link)
+  int64_t bytes_ip = 0;    ///< with UDP/IP headers and IP fragmentation
+  std::vector<std::pair<int64_t, int64_t>> packets;  ///< (t_ns, bytes) for bandwidth windows
+  std::optional<int64_t> first_packet_t_ns;
+  struct Fix {
+    int64_t t_ns = 0;
+    Pose T_wa_wg;
+    std::optional<PoseError> error;  ///< when ground truth exists
+  };
+  std::vector<Fix> fixes;  ///< published fixes only
+};
+
+/// Wall-clock samples, in ms.
+struct TimingRecord {
+  std::vector<double> estimate, stage1, stage2, retrieval, depth_association_per_keyframe,
+      air_features_per_frame;
+};
+
+struct ReportInput {
+  std::string dataset;
+  nlohmann::json config;  ///< the effective configuration
+  std::map<std::string, AgentRecord> agents;
+  TimingRecord timing;
+  bool has_groundtruth = false;
+  double success_translation_m = 0.3;  ///< final fix within this ...
+  double success_yaw_deg = 3.0;        ///< ... and this, for success
+  double false_fix_translation_m = 1.0;
+  double false_fix_yaw_deg = 10.0;
+};
+
+/// Bandwidth over a run: mean over [first packet, last packet + 1 s) and
+/// the largest sum in any 1 s window, in Mbit/s.
+struct Bandwidth {
+  double mean_mbps = 0;
+  double max_1s_mbps = 0;
+};
+Bandwidth ComputeBandwidth(const std::vector<std::pair<int64_t, int64_t>>& packets);
+
+/// A YAML tree (as the options write themselves) as JSON: maps, lists,
+/// booleans, numbers where the scalar is one, strings otherwise.
+nlohmann::json YamlToJson(const YAML::Node& node);
+
+/// The report JSON (format_version 1).
+nlohmann::json MakeReport(const ReportInput& input);
+
+}  // namespace ag
