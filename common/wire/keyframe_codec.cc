@@ -144,6 +144,7 @@ bool DequantizeArray(const aglcm::quantized_array_t& a, cv::Mat* values, std::st
     case aglcm::quantized_array_t::BITS:
       if (a.bits < 1 || a.bits > 8)
         return fail("BITS encoding with bits = " + std::to_string(a.bits));
+      // NOLINTNEXTLINE(bugprone-signed-char-misuse): an int8_t count, not a character
       expected_bits = a.bits;
       break;
     default:

@@ -281,6 +281,7 @@ EstimateResult AgentEstimator::Estimate(
       }
     }
     std::vector<UgvWindowFrame> frames;
+    frames.reserve(window.size());
     for (const auto& kf : window) frames.push_back({kf->t_ns, kf->T_wg_c, ugv_camera_.get()});
     const Stage1Result s1 = RunStage1(frames, tracks, options_.stage1);
     if (s1.success) {
@@ -294,6 +295,7 @@ EstimateResult AgentEstimator::Estimate(
   // 5. Stage 2: T_wa_wg and UAV poses.
   step = Stopwatch();
   std::vector<AirFrame> frames2;
+  frames2.reserve(air_frames.size());
   for (const auto& a : air_frames)
     frames2.push_back({a->t_ns, a->T_wa_c, air_cameras_.at(a->camera_id).get()});
   std::vector<AirGroundObservation> observations;

@@ -306,6 +306,7 @@ size_t Simulation::Write(const std::string& out_dir, int threads) const {
     }
   };
   std::vector<std::thread> pool;
+  pool.reserve(n_threads);
   for (int t = 0; t < n_threads; ++t) pool.emplace_back(worker);
   for (std::thread& t : pool) t.join();
   cv::setNumThreads(previous_cv_threads);

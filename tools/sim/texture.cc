@@ -311,7 +311,7 @@ Vector3f TextureImages::Sample(size_t index, const Vector2d& uv, double footprin
     const Vector3f b = Lerp(t[y1 * level.width + x0], t[y1 * level.width + x1], tx);
     return Lerp(a, b, ty);
   };
-  const Vector3f c0 = bilinear(levels[l0], std::ldexp(1.0, l0));
+  Vector3f c0 = bilinear(levels[l0], std::ldexp(1.0, l0));
   if (l1 == l0 || frac <= 0.0f) return c0;
   return Lerp(c0, bilinear(levels[l1], std::ldexp(1.0, l1)), frac);
 }

@@ -1,5 +1,7 @@
 #pragma once
 
+#include <array>
+
 // Surface textures of the simulated world, defined in world units: a texture
 // is a function of the 2-D surface coordinates (metres) of a point, so the
 // same point looks the same from the air (metres away, oblique) and from the
@@ -111,7 +113,7 @@ class SurfaceTexture {
   /// What varies slowly (colour mixing, ground regions): evaluated once per
   /// footprint.
   struct LowFrequency {
-    Eigen::Vector3f color[2];
+    std::array<Eigen::Vector3f, 2> color;
     int region[2] = {0, 0};  ///< ground: the two nearest regions
     float blend = 1.0f;      ///< ground: weight of region[0]
   };

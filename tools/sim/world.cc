@@ -41,8 +41,7 @@ void WorldOptions::Check() const {
   CheckOption(texture_texel_m > 0, "texture_texel_m", "must be > 0");
 }
 
-SimWorld::SimWorld(uint64_t seed, WorldOptions options)
-    : options_(std::move(options)), seed_(seed) {
+SimWorld::SimWorld(uint64_t seed, WorldOptions options) : options_(options), seed_(seed) {
   surfaces_.emplace_back(MaterialKind::kGround, HashCombine(seed_, HashString("ground")));
   const double az = options_.sun_azimuth_deg * kDeg;
   const double el = options_.sun_elevation_deg * kDeg;
