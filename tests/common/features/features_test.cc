@@ -134,7 +134,9 @@ TEST(XFeatTest, LetterboxKeepsKeypointsInTheImageAndTopKSorted) {
         EXPECT_LE(f.keypoints[i].x(), size.width - 1.0f);
         EXPECT_LE(f.keypoints[i].y(), size.height - 1.0f);
         EXPECT_NEAR(cv::norm(f.descriptors.row(static_cast<int>(i))), 1.0, 1e-4);
-        if (i > 0) EXPECT_GE(f.scores[i - 1], f.scores[i]);
+        if (i > 0) {
+          EXPECT_GE(f.scores[i - 1], f.scores[i]);
+        }
       }
     }
   }
@@ -144,8 +146,8 @@ TEST(XFeatTest, LetterboxKeepsKeypointsInTheImageAndTopKSorted) {
   const LocalFeatures f = XFeat(model, 64)->Extract(img);
   int near_corner = 0;
   for (const auto& k : f.keypoints) {
-    for (const Eigen::Vector2f c : {Eigen::Vector2f(600, 150), Eigen::Vector2f(799, 150),
-                                    Eigen::Vector2f(600, 269), Eigen::Vector2f(799, 269)}) {
+    for (const Eigen::Vector2f& c : {Eigen::Vector2f(600, 150), Eigen::Vector2f(799, 150),
+                                     Eigen::Vector2f(600, 269), Eigen::Vector2f(799, 269)}) {
       near_corner += (k - c).norm() < 6.0f;
     }
   }
