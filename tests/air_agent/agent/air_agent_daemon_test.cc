@@ -1,4 +1,4 @@
-// The air_agent binary, replaying a dataset inside a private network
+// The air_agent binary, replaying the `small` scenario inside a private network
 // namespace, publishes keyframe packets that a subscriber (lcm_capture)
 // records; decoded, they equal what the extractor computes offline: exactly
 // for float32, within the quantisation error otherwise.
@@ -6,8 +6,6 @@
 
 #include <filesystem>
 #include <fstream>
-#include <opencv2/imgproc.hpp>
-#include <random>
 
 #include "common/dataset/dataset.h"
 #include "common/features/feature_extractor.h"
@@ -15,60 +13,17 @@
 #include "lcmtypes/checked_decode.h"
 #include "tests/support/netns.h"
 #include "tests/support/test_support.h"
+#include "tools/sim/scenario.h"
+#include "tools/sim/simulator.h"
 
 namespace ag {
 namespace {
 
 namespace fs = std::filesystem;
 
-CameraParams SmallCamera() {
-  CameraParams p;
-  p.width = 320;
-  p.height = 240;
-  p.fx = p.fy = 250;
-  p.cx = 160;
-  p.cy = 120;
-  return p;
-}
-
-// A textured image that shifts with the frame index, so keypoints exist and
-// frames differ.
-cv::Mat TexturedImage(int frame) {
-  cv::Mat img(240, 320, CV_8UC1);
-  std::mt19937 rng(7);
-  cv::Mat noise(60, 80, CV_8UC1);
-  cv::randu(noise, 0, 255);
-  cv::resize(noise, img, img.size(), 0, 0, cv::INTER_CUBIC);
-  for (int k = 0; k < 40; ++k) {
-    const int x = (static_cast<int>(rng() % 300) + frame * 2) % 320;
-    const int y = static_cast<int>(rng() % 220);
-    cv::rectangle(img, {x, y, 12, 9}, cv::Scalar(static_cast<double>(rng() % 255)), cv::FILLED);
-  }
-  return img;
-}
-
-// A dataset with a minimal ground agent and one air agent "uav_t": 3 s of
-// 10 Hz frames and 100 Hz VIO.
+// The `small` scenario preset (seed 2), as tools/simulate writes it.
 std::string WriteDataset(const std::string& dir) {
-  DatasetWriter w(dir, "daemon_test", "air_agent daemon test");
-  AgentCalibration ground;
-  ground.camera.camera = SmallCamera();
-  ground.lidar = LidarCalibration{};
-  w.BeginGround(ground);
-  const int64_t t0 = 1000000000000LL;
-  cv::imwrite(w.AddImage("ground", t0), TexturedImage(0));
-  w.SetOdometry("ground", {{t0, Pose::Identity()}, {t0 + 100000000, Pose::Identity()}});
-  AgentCalibration air;
-  air.camera.camera = SmallCamera();
-  air.camera.T_body_camera = MakePose4Dof(0.05, 0, -0.02, 0.1);
-  w.BeginAir("uav_t", air);
-  std::vector<StampedPose> vio;
-  for (int i = 0; i <= 320; ++i)
-    vio.push_back({t0 + i * 10000000LL, MakePose4Dof(0.01 * i, 0.005 * i, 8, 0.001 * i)});
-  w.SetOdometry("uav_t", vio);
-  for (int f = 0; f < 30; ++f)
-    cv::imwrite(w.AddImage("uav_t", t0 + f * 100000000LL), TexturedImage(f));
-  w.Finish();
+  Simulation(LoadScenario(test::SourceDir() + "/config/scenarios/small.yaml"), 2).Write(dir);
   return dir;
 }
 
@@ -87,10 +42,10 @@ TEST_P(AirAgentDaemonTest, PublishedPacketsDecodeToTheOfflineFeatures) {
                                   << "frontend:\n  governor: {encodings: [" << encoding << "]}\n";
   const std::string script =
       std::string(AG_LCM_CAPTURE) +
-      " --pattern AG_AIR_KEYFRAME_uav_t --count 3 --timeout 60 --out " + (tmp / "capture") +
+      " --pattern AG_AIR_KEYFRAME_uav1 --count 2 --timeout 60 --out " + (tmp / "capture") +
       " --lcm-url \"" + test::kTestLcmUrl + "\" & " + "i=0; while [ ! -f " +
       (tmp / "capture/READY") + " ] && [ $i -lt 200 ]; do sleep 0.05; i=$((i+1)); done; " +
-      AG_AIR_AGENT + " --dataset " + dataset + " --agent uav_t --speed 0 --config " +
+      AG_AIR_AGENT + " --dataset " + dataset + " --agent uav1 --speed 0 --config " +
       (tmp / "air.yaml") + " --lcm-url \"" + test::kTestLcmUrl + "\" && wait $!";
   const int status = test::RunInPrivateNetwork(script, tmp / "log.txt");
   std::ifstream log_file(tmp / "log.txt");
@@ -99,13 +54,13 @@ TEST_P(AirAgentDaemonTest, PublishedPacketsDecodeToTheOfflineFeatures) {
   ASSERT_EQ(status, 0) << log;
 
   const Dataset ds = ReadDataset(dataset);
-  const AgentData& uav = ds.air.at("uav_t");
+  const AgentData& uav = ds.air.at("uav1");
   FeatureOptions fo;
   fo.backend = "sift";
   fo.top_k = 300;
   const auto extractor = CreateFeatureExtractor(fo);
-  for (int k = 0; k < 3; ++k) {
-    const std::string path = tmp / ("capture/AG_AIR_KEYFRAME_uav_t." + std::to_string(k) + ".bin");
+  for (int k = 0; k < 2; ++k) {  // 2 s at 1 keyframe per second
+    const std::string path = tmp / ("capture/AG_AIR_KEYFRAME_uav1." + std::to_string(k) + ".bin");
     std::ifstream in(path, std::ios::binary);
     ASSERT_TRUE(in) << path << "\n" << log;
     const std::vector<char> bytes((std::istreambuf_iterator<char>(in)),
@@ -115,7 +70,7 @@ TEST_P(AirAgentDaemonTest, PublishedPacketsDecodeToTheOfflineFeatures) {
     const DecodedKeyframe d = DecodeKeyframe(packet);
     ASSERT_TRUE(d.ok) << d.error;
     EXPECT_EQ(d.keyframe.seq, k);
-    // Keyframes at 1 Hz: frames 0, 10, 20.
+    // Keyframes at 1 Hz of 10 Hz frames: frames 0 and 10.
     const SensorFrame& frame = uav.images[10 * k];
     EXPECT_EQ(d.keyframe.t_ns, frame.t_ns);
     const Pose expected_pose =
