@@ -37,6 +37,7 @@ cv::Mat RandomHomography(const cv::Size& size, std::mt19937& rng) {
                                   {static_cast<float>(size.width), static_cast<float>(size.height)},
                                   {0, static_cast<float>(size.height)}};
   std::vector<cv::Point2f> dst;
+  dst.reserve(src.size());
   const double jitter = 0.12 * std::min(size.width, size.height);
   for (const auto& p : src) dst.emplace_back(p.x + jitter * u(rng), p.y + jitter * u(rng));
   return cv::getPerspectiveTransform(src, dst);
