@@ -4,25 +4,16 @@
 
 #include <random>
 
+#include "tests/support/synthetic_views.h"
+
 namespace ag {
 namespace {
+
+using test::LookAt;
 
 constexpr double kFocal = 500.0;
 constexpr double kCx = 320.0;
 constexpr double kCy = 240.0;
-
-// A downward-oblique UAV camera at `position` (air world) looking at `target`.
-Pose LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - position).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Pose T = Pose::Identity();
-  T.linear().col(0) = x;
-  T.linear().col(1) = y;
-  T.linear().col(2) = z;
-  T.translation() = position;
-  return T;
-}
 
 struct Scene {
   Pose T_wa_wg;

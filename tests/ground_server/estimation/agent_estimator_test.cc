@@ -5,29 +5,12 @@
 #include <opencv2/core.hpp>
 #include <random>
 
+#include "tests/support/synthetic_views.h"
+
 namespace ag {
 namespace {
 
-CameraParams Pinhole() {
-  CameraParams p;
-  p.width = 640;
-  p.height = 480;
-  p.fx = p.fy = 500;
-  p.cx = 320;
-  p.cy = 240;
-  return p;
-}
-
-Pose LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - position).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Pose T = Pose::Identity();
-  T.linear().col(0) = x;
-  T.linear().col(1) = z.cross(x);
-  T.linear().col(2) = z;
-  T.translation() = position;
-  return T;
-}
+using test::LookAt;
 
 // A brute-force source: similarity = dot product of global descriptors.
 class VectorSource : public AirKeyframeSource {
@@ -111,7 +94,7 @@ class AgentEstimatorTest : public ::testing::Test {
   void SetUp() override {
     rng_.seed(3);
     world_ = MakeWorld(rng_);
-    camera_ = std::make_shared<Camera>(Pinhole());
+    camera_ = std::make_shared<Camera>(test::Pinhole640x480());
     T_wa_wg_ = MakePose4Dof(20, -7, 1.5, 1.1);
     std::normal_distribution<double> n(0, 1);
     std::vector<float> place(512, 0.0f);

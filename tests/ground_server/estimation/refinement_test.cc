@@ -5,31 +5,12 @@
 #include <random>
 
 #include "ground_server/estimation/cost_functions.h"
+#include "tests/support/synthetic_views.h"
 
 namespace ag {
 namespace {
 
-CameraParams Pinhole() {
-  CameraParams p;
-  p.width = 640;
-  p.height = 480;
-  p.fx = p.fy = 500;
-  p.cx = 320;
-  p.cy = 240;
-  p.distortion = {-0.05, 0.01, 0.001, -0.0005};
-  return p;
-}
-
-Pose LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z = (target - position).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Pose T = Pose::Identity();
-  T.linear().col(0) = x;
-  T.linear().col(1) = z.cross(x);
-  T.linear().col(2) = z;
-  T.translation() = position;
-  return T;
-}
+using test::LookAt;
 
 Pose Perturb(const Pose& T, std::mt19937& rng, double sigma_t, double sigma_rot) {
   std::normal_distribution<double> n(0, 1);
@@ -70,7 +51,7 @@ TEST(CostFunctionTest, ConsistencyResidualIsTheFourDofDifference) {
 }
 
 TEST(CostFunctionTest, ReprojectionResidualsVanishAtTheTruth) {
-  const Camera camera(Pinhole());
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   const Pose T_wa_wg = MakePose4Dof(3, -1, 0.5, 0.7);
   const Pose T_wa_ca = LookAt(Eigen::Vector3d(0, 0, 8), Eigen::Vector3d(2, 1, 0));
   const Eigen::Vector3d p_wg = T_wa_wg.inverse() * Eigen::Vector3d(1.5, 0.5, 0.2);
@@ -173,7 +154,7 @@ double YawErrDeg(const Pose& a, const Pose& b) {
 }
 
 TEST(Stage2Test, RecoversKnownPerturbation) {
-  const Camera camera(Pinhole());
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   for (uint32_t seed = 0; seed < 5; ++seed) {
     const AirScene s = MakeAirScene(&camera, seed, 0.5, 0.0);
     const Pose initial = MakePose4Dof(0.3, -0.2, 0.1, 0.03) * s.T_wa_wg;
@@ -188,7 +169,7 @@ TEST(Stage2Test, RecoversKnownPerturbation) {
 }
 
 TEST(Stage2Test, ConsistencyOnlyAveragesPairs) {
-  const Camera camera(Pinhole());
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   const AirScene s = MakeAirScene(&camera, 3, 0.5, 0.0);
   Stage2Options o;
   o.use_reprojection = false;
@@ -203,7 +184,7 @@ TEST(Stage2Test, ConsistencyOnlyAveragesPairs) {
 TEST(Stage2Test, CovarianceIsConsistentWithTheError) {
   // NEES over many seeds: with correctly modelled noise its mean is ~4
   // (dimension); an over-confident covariance would give far more.
-  const Camera camera(Pinhole());
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   double nees_sum = 0;
   const int trials = 30;
   for (uint32_t seed = 0; seed < trials; ++seed) {
@@ -224,7 +205,7 @@ TEST(Stage2Test, CovarianceIsConsistentWithTheError) {
 }
 
 TEST(Stage2Test, FailsWithoutMeasurements) {
-  const Camera camera(Pinhole());
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   const AirScene s = MakeAirScene(&camera, 1, 0.5, 0.0);
   Stage2Options o;
   o.use_consistency = false;
@@ -236,7 +217,7 @@ TEST(Stage2Test, FailsWithoutMeasurements) {
 // ------------------------------------------------------------ stage 1
 
 TEST(Stage1Test, RecoversPerturbedUgvPoses) {
-  const Camera camera(Pinhole());
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
   std::normal_distribution<double> n(0, 1);
@@ -293,7 +274,7 @@ TEST(Stage1Test, RecoversPerturbedUgvPoses) {
 }
 
 TEST(Stage1Test, NeedsTwoFramesAndTracks) {
-  const Camera camera(Pinhole());
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   std::vector<UgvWindowFrame> frames(1);
   frames[0].camera = &camera;
   EXPECT_FALSE(RunStage1(frames, {}, {}).success);
