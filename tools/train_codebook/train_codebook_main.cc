@@ -1,8 +1,9 @@
 // train_codebook: k-means VLAD codebook over the local descriptors of a set of
-// images (folders, and/or procedurally generated ones), written as the YAML
+// images (datasets, folders, and/or procedurally generated ones), written as the YAML
 // that ag::ReadVladCodebook reads and common/features compiles in.
 //
 //   train_codebook --procedural 300 --model models/xfeat.onnx -o vlad_xfeat.yaml
+//   train_codebook --dataset out/sim_small --every 5 --model models/xfeat.onnx -o vlad_xfeat.yaml
 //   train_codebook --images sim_out/air/uav1/images --backend sift -o my_sift.yaml
 
 #include <spdlog/spdlog.h>
@@ -13,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "common/dataset/dataset.h"
 #include "common/features/feature_extractor.h"
 #include "common/features/vlad.h"
 #include "common/logging/logging.h"
@@ -23,6 +25,8 @@ int main(int argc, char** argv) {
   CLI::App app{"Train a VLAD codebook (k-means over local descriptors) for ag::features"};
   std::string output;
   std::vector<std::string> image_dirs;
+  std::vector<std::string> datasets;
+  int every = 1;
   int procedural = 0;
   int procedural_width = 640;
   int procedural_height = 480;
@@ -35,6 +39,10 @@ int main(int argc, char** argv) {
   app.add_option("-o,--output", output, "codebook YAML to write")->required();
   app.add_option("--images", image_dirs, "folder of images (repeatable)")
       ->check(CLI::ExistingDirectory);
+  app.add_option("--dataset", datasets, "dataset (format v1): every agent's images (repeatable)")
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--every", every, "use every N-th image of folders and datasets")
+      ->check(CLI::PositiveNumber);
   app.add_option("--procedural", procedural, "number of procedurally generated images to add")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--procedural-width", procedural_width, "procedural image width (px)")
@@ -54,24 +62,37 @@ int main(int argc, char** argv) {
   ag::SetupLogging("train_codebook");
 
   try {
-    if (image_dirs.empty() && procedural == 0) {
-      throw std::invalid_argument("no images: give --images DIR and/or --procedural N");
+    if (image_dirs.empty() && datasets.empty() && procedural == 0) {
+      throw std::invalid_argument("no images: give --dataset DIR, --images DIR or --procedural N");
     }
     const auto extractor = ag::CreateFeatureExtractor(features);
     if (clusters <= 0) clusters = 512 / extractor->descriptor_dim();
 
     std::vector<cv::Mat> blocks;
     int images = 0;
+    std::vector<std::string> files;
     for (const std::string& dir : image_dirs) {
-      for (const std::string& file : ag::ListImageFiles(dir)) {
-        const cv::Mat image = cv::imread(file, cv::IMREAD_COLOR);
-        if (image.empty()) {
-          spdlog::warn("cannot read image '{}', skipped", file);
-          continue;
+      const std::vector<std::string> listed = ag::ListImageFiles(dir);
+      for (size_t i = 0; i < listed.size(); i += every) files.push_back(listed[i]);
+    }
+    for (const std::string& dir : datasets) {
+      const ag::Dataset dataset = ag::ReadDataset(dir);
+      std::vector<const ag::AgentData*> agents = {&dataset.ground};
+      for (const auto& [name, air] : dataset.air) agents.push_back(&air);
+      for (const ag::AgentData* agent : agents) {
+        for (size_t i = 0; i < agent->images.size(); i += every) {
+          files.push_back(agent->images[i].path);
         }
-        blocks.push_back(extractor->Extract(image).descriptors);
-        ++images;
       }
+    }
+    for (const std::string& file : files) {
+      const cv::Mat image = cv::imread(file, cv::IMREAD_COLOR);
+      if (image.empty()) {
+        spdlog::warn("cannot read image '{}', skipped", file);
+        continue;
+      }
+      blocks.push_back(extractor->Extract(image).descriptors);
+      ++images;
     }
     for (int i = 0; i < procedural; ++i) {
       const cv::Mat image =
@@ -94,6 +115,8 @@ int main(int argc, char** argv) {
             " " + std::to_string(procedural) + " procedural (tools/train_codebook --procedural)";
       }
       for (const std::string& dir : image_dirs) note += " folder " + dir;
+      for (const std::string& dir : datasets) note += " dataset " + dir;
+      if (every > 1) note += " (every " + std::to_string(every) + "th image)";
     }
     codebook.note = note;
     ag::WriteVladCodebook(output, codebook);
