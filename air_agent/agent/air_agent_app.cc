@@ -34,6 +34,7 @@ void AirAgentOptions::Check() const {
   CheckOption(IsValidAgentName(agent), "agent", "'" + agent + "' is not [a-z0-9_]+");
   CheckOption(stats_period_s > 0, "stats_period_s", "must be > 0");
   CheckOption(vio_buffer_poses >= 2, "vio_buffer_poses", "must be >= 2");
+  CheckOption(vio_queue_messages >= 1, "vio_queue_messages", "must be >= 1");
 }
 
 AirAgentApp::AirAgentApp(const AirAgentOptions& options) : options_(options), impl_(new Impl) {
@@ -78,12 +79,18 @@ void AirAgentApp::MaybeLogStats(bool force) {
   const AirAgentStats& a = impl_->stats_at_last_log;
   const int64_t kfs = stats_.keyframes - a.keyframes;
   const double mbps = dt > 0 ? (stats_.bytes_ip - a.bytes_ip) * 8.0 / 1e6 / dt : 0.0;
+  std::string extra;
+  if (stats_.vio_poses > 0) extra += ", vio poses " + std::to_string(stats_.vio_poses);
+  if (stats_.frames_without_pose > 0) {
+    extra += ", frames without pose " + std::to_string(stats_.frames_without_pose);
+  }
+  if (stats_.bad_messages > 0) extra += ", bad messages " + std::to_string(stats_.bad_messages);
   spdlog::info(
       "{}: frames {} keyframes {} (+{}) skipped {} keypoints/kf {} link {:.3f} Mbps "
       "(last {:.1f} s) total {:.1f} kB{}",
       options_.agent, stats_.frames, stats_.keyframes, kfs, stats_.skipped,
       kfs > 0 ? (stats_.keypoints - a.keypoints) / kfs : 0, mbps, dt, stats_.bytes_ip / 1000.0,
-      stats_.bad_messages ? ", bad messages " + std::to_string(stats_.bad_messages) : "");
+      extra);
   impl_->stats_at_last_log = stats_;
   impl_->last_stats = now;
 }
@@ -147,10 +154,15 @@ void AirAgentApp::RunLive(const std::atomic<bool>& stop) {
       Impl& impl = *app->impl_;
       const std::vector<StampedPose> buffer(impl.vio.begin(), impl.vio.end());
       const InterpolationResult vio = InterpolateInBuffer(buffer, impl.frontend->BodyTimeNs(t_ns));
-      if (vio.status == InterpolationStatus::kAfterEnd) {
+      // No VIO yet (kEmpty: a camera starting before the VIO, or a frame
+      // arriving just before the pose of its own instant) or not yet up to
+      // this frame: wait for it; OnOdometry processes the frame when it does.
+      if (vio.status == InterpolationStatus::kAfterEnd ||
+          vio.status == InterpolationStatus::kEmpty) {
         impl.waiting_images.emplace_back(t_ns, image);
         while (impl.waiting_images.size() > 5) {  // VIO stalled: keep only the newest frames
           impl.waiting_images.pop_front();
+          ++app->stats_.frames;
           ++app->stats_.frames_without_pose;
         }
         return;
@@ -185,6 +197,7 @@ void AirAgentApp::RunLive(const std::atomic<bool>& stop) {
         spdlog::warn("{}: {} ({} bad messages so far)", channel, error, app->stats_.bad_messages);
         return;
       }
+      ++app->stats_.vio_poses;
       Impl& impl = *app->impl_;
       if (!impl.vio.empty() && pose.t_ns <= impl.vio.back().t_ns) return;  // out of order: drop
       impl.vio.push_back(pose);
@@ -199,7 +212,8 @@ void AirAgentApp::RunLive(const std::atomic<bool>& stop) {
     }
   } handler{this};
   impl_->lcm->subscribe(AirImageChannel(options_.agent), &Handler::OnImage, &handler);
-  impl_->lcm->subscribe(AirOdometryChannel(options_.agent), &Handler::OnOdometry, &handler);
+  impl_->lcm->subscribe(AirOdometryChannel(options_.agent), &Handler::OnOdometry, &handler)
+      ->setQueueCapacity(options_.vio_queue_messages);
   spdlog::info("{}: listening on {} and {}", options_.agent, AirImageChannel(options_.agent),
                AirOdometryChannel(options_.agent));
   while (!stop) {

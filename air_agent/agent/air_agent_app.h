@@ -20,6 +20,10 @@ struct AirAgentOptions {
   std::string lcm_url;          ///< LCM provider URL; empty: LCM's default / $LCM_DEFAULT_URL
   double stats_period_s = 5.0;  ///< status line period (s)
   int vio_buffer_poses = 2000;  ///< live mode: VIO poses kept for interpolation
+  /// Live mode: VIO messages LCM may queue while a keyframe is processed.
+  /// LCM's default (30) is 0.15 s of a 200 Hz VIO, less than one feature
+  /// extraction: the poses beyond it were dropped.
+  int vio_queue_messages = 1000;
   /// Live mode: the camera's calibration.yaml (dataset format); dataset mode
   /// reads the agent's own.
   std::string calibration_file;
@@ -34,6 +38,7 @@ struct AirAgentOptions {
     v("lcm_url", lcm_url);
     v("stats_period_s", stats_period_s);
     v("vio_buffer_poses", vio_buffer_poses);
+    v("vio_queue_messages", vio_queue_messages);
     v("calibration_file", calibration_file);
     v("features", features);
     v("global_descriptor", global_descriptor);
@@ -47,12 +52,13 @@ struct AirAgentOptions {
 struct AirAgentStats {
   int64_t frames = 0;
   int64_t keyframes = 0;
-  int64_t skipped = 0;       ///< keyframes the budget had no room for
-  int64_t keypoints = 0;     ///< sent, summed
-  int64_t bytes_lcm = 0;     ///< LCM UDP payload bytes published
-  int64_t bytes_ip = 0;      ///< the same with UDP/IP headers
-  int64_t bad_messages = 0;  ///< live input that failed to decode
-  int64_t frames_without_pose = 0;
+  int64_t skipped = 0;              ///< keyframes the budget had no room for
+  int64_t keypoints = 0;            ///< sent, summed
+  int64_t bytes_lcm = 0;            ///< LCM UDP payload bytes published
+  int64_t bytes_ip = 0;             ///< the same with UDP/IP headers
+  int64_t bad_messages = 0;         ///< live input that failed to decode
+  int64_t frames_without_pose = 0;  ///< no VIO pose at their time (dropped)
+  int64_t vio_poses = 0;            ///< live mode: VIO messages received
 };
 
 class AirAgentApp {
