@@ -17,7 +17,8 @@ void OnSignal(int) { g_stop = true; }
 
 int main(int argc, char** argv) {
   CLI::App app{"air_agent: UAV keyframe sender (features + global descriptor + VIO pose over LCM)"};
-  std::string config_path, dataset_dir, dataset_agent, agent, lcm_url, model, log_level;
+  std::string config_path, dataset_dir, dataset_agent, agent, lcm_url, model, log_level,
+      calibration;
   double speed = 1.0, budget = -1;
   int keypoints = 0;
   bool print_config = false;
@@ -28,6 +29,9 @@ int main(int argc, char** argv) {
                  "agent name (channel suffix); with --dataset also the agent replayed");
   app.add_option("--dataset-agent", dataset_agent,
                  "air agent of the dataset to replay (default: --agent)");
+  app.add_option("--calibration", calibration,
+                 "live mode: the camera's calibration.yaml (dataset format; else "
+                 "calibration_file in --config)");
   app.add_option("--speed", speed, "dataset replay speed factor; 0 = as fast as possible")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--budget-mbps", budget, "link budget in Mbit/s (0 = unlimited)");
@@ -47,6 +51,7 @@ int main(int argc, char** argv) {
     if (!agent.empty()) options.agent = agent;
     if (!lcm_url.empty()) options.lcm_url = lcm_url;
     if (!model.empty()) options.features.model_path = model;
+    if (!calibration.empty()) options.calibration_file = calibration;
     if (!log_level.empty()) options.logging.level = log_level;
     if (budget >= 0) options.frontend.governor.budget_mbps = budget;
     if (keypoints > 0) {

@@ -142,6 +142,17 @@ TEST(AirAgentLive, KeyframesFromPlayedScenarioThenSigtermExitsCleanly) {
   EXPECT_NE(agent_log.find("air_agent stopped (signal)"), std::string::npos) << agent_log;
 }
 
+TEST(AirAgentLive, CalibrationFlagSetsTheLiveCamera) {
+  test::TempDir tmp;
+  test::ChildProcess agent(
+      {AG_AIR_AGENT, "--calibration", tmp / "calibration.yaml", "--print-config"}, tmp / "out.txt");
+  const auto status = agent.WaitFor(30);
+  const std::string out = test::ReadFileText(tmp / "out.txt");
+  ASSERT_TRUE(status.has_value()) << out;
+  EXPECT_EQ(status->code, 0) << out;
+  EXPECT_NE(out.find("calibration_file: " + (tmp / "calibration.yaml")), std::string::npos) << out;
+}
+
 class AirAgentSignalTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(AirAgentSignalTest, DatasetModeStopsCleanlyAfterAKeyframe) {
