@@ -32,6 +32,7 @@ ExitStatus FromWaitStatus(int status) {
 
 ChildProcess::ChildProcess(const std::vector<std::string>& argv, const std::string& output_path) {
   std::vector<char*> args;
+  args.reserve(argv.size() + 1);
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   posix_spawn_file_actions_t actions;
