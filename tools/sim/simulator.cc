@@ -327,7 +327,17 @@ size_t Simulation::Write(const std::string& out_dir, int threads) const {
     }
     SimRandom rng(seed_, "odometry/" + agent.name);
     const std::string key = agent.ground ? "ground" : agent.name;
-    writer.SetOdometry(key, SimulateOdometry(gt, agent.odometry, rng));
+    // LIO tracks the LiDAR: it reports the body pose that puts the LiDAR,
+    // through the nominal extrinsic, where it truly is, so its map is crisp
+    // and the LiDAR extrinsic error becomes an offset of the reported body.
+    // (T_w_b_lio T_b_l_nominal = T_w_b T_b_l_true.) The camera extrinsic
+    // error relative to the LiDAR is what stage 1 has to absorb.
+    std::vector<StampedPose> tracked = gt;
+    if (agent.ground) {
+      const Pose lidar_offset = agent.T_body_lidar_true * agent.T_body_lidar_nominal.inverse();
+      for (StampedPose& s : tracked) s.T = s.T * lidar_offset;
+    }
+    writer.SetOdometry(key, SimulateOdometry(tracked, agent.odometry, rng));
     writer.SetGroundTruthTrajectory(key, gt);
     CameraCalibration true_camera;
     true_camera.camera = agent.camera_options.Params();
