@@ -51,8 +51,8 @@ double AngularError(const Pose& T_wa_wg, const RayPointCorrespondence& c);
 struct RansacOptions {
   std::string solver = "four_dof";   ///< "four_dof" (2-point, known gravity) or "epnp"
   double inlier_threshold_px = 3.0;  ///< reprojection threshold (px at the UAV focal length)
-  int max_iterations = 500;          ///< hard cap on hypotheses
-  double confidence = 0.999;         ///< stop early at this probability of success
+  int max_iterations = 2000;         ///< hard cap on hypotheses
+  double confidence = 0.999999;      ///< stop early at this probability of success
   int min_inliers = 12;              ///< fewer means failure
   uint64_t seed = 1;                 ///< RANSAC is deterministic for a seed
 

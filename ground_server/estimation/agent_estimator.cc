@@ -1,7 +1,10 @@
 #include "ground_server/estimation/agent_estimator.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <set>
 
 #include "common/core/error.h"
@@ -62,6 +65,11 @@ void EstimatorOptions::Check() const {
   CheckOption(covisible_fraction > 0 && covisible_fraction <= 1, "covisible_fraction",
               "must be in (0, 1]");
   CheckOption(max_pairs >= 1, "max_pairs", "must be >= 1");
+  CheckOption(stage1_extra_tracks >= 0, "stage1_extra_tracks", "must be >= 0");
+  CheckOption(stage1_fusion_windows >= 1, "stage1_fusion_windows", "must be >= 1");
+  CheckOption(scatter_window >= 3, "scatter_window", "must be >= 3");
+  CheckOption(bias_sigma_t_m >= 0, "bias_sigma_t_m", "must be >= 0");
+  CheckOption(bias_sigma_yaw_deg >= 0, "bias_sigma_yaw_deg", "must be >= 0");
   CheckOption(min_matches >= 4, "min_matches", "must be >= 4");
   CheckOption(min_pair_inliers >= 4, "min_pair_inliers", "must be >= 4");
   CheckOption(min_inliers >= 6, "min_inliers", "must be >= 6");
@@ -233,23 +241,45 @@ EstimateResult AgentEstimator::Estimate(
   // 4. Stage 1: UGV window BA over the tracks of inlier UGV keypoints.
   step = Stopwatch();
   std::map<std::pair<int, int>, Eigen::Vector3d> refined;  // (ugv, keypoint) -> p_wg
+  r.ugv_T_wg_c_lio = window.back()->T_wg_c;
+  r.ugv_T_wg_c_refined = r.ugv_T_wg_c_lio;
   if (options_.use_stage1 && n_window >= 2) {
     std::map<std::pair<int, int>, int> track_of;
     std::vector<UgvTrack> tracks;
     std::vector<std::pair<int, int>> track_key;
-    for (int i : initial.inliers) {
-      const auto key = std::make_pair(origin[i].ugv, origin[i].ugv_keypoint);
-      if (track_of.count(key)) continue;
-      const UgvKeyframe& host = *window[key.first];
+    auto add_track = [&](int ugv, int keypoint) {
+      const auto key = std::make_pair(ugv, keypoint);
+      if (track_of.count(key)) return;
+      const UgvKeyframe& host = *window[ugv];
+      if (!host.has_point[keypoint]) return;
       UgvTrack t;
-      t.host_frame = key.first;
+      t.host_frame = ugv;
       t.f_host =
-          ugv_camera_->UndistortToNormalized(host.features.keypoints[key.second].cast<double>());
-      t.lidar_depth = (host.T_wg_c.inverse() * host.points_wg[key.second]).z();
-      if (!(t.lidar_depth > 0.1)) continue;
+          ugv_camera_->UndistortToNormalized(host.features.keypoints[keypoint].cast<double>());
+      t.lidar_depth = (host.T_wg_c.inverse() * host.points_wg[keypoint]).z();
+      if (!(t.lidar_depth > 0.1)) return;
+      if (!host.planes_wg.empty()) t.plane = host.planes_wg[keypoint];
       track_of[key] = static_cast<int>(tracks.size());
       tracks.push_back(t);
       track_key.push_back(key);
+    };
+    for (int i : initial.inliers) add_track(origin[i].ugv, origin[i].ugv_keypoint);
+    // More points on map planes, from the newest keyframe, so the window's
+    // pose against the map is well determined even with few inliers.
+    {
+      const int newest = n_window - 1;
+      const UgvKeyframe& kf = *window[newest];
+      std::vector<int> on_planes;
+      for (int k = 0; k < static_cast<int>(kf.planes_wg.size()); ++k) {
+        if (kf.has_point[k] && kf.planes_wg[k].head<3>().squaredNorm() > 0.5)
+          on_planes.push_back(k);
+      }
+      const int extra = options_.stage1_extra_tracks;
+      const double stride =
+          on_planes.size() > static_cast<size_t>(extra) ? on_planes.size() / double(extra) : 1.0;
+      for (double x = 0; x < on_planes.size(); x += stride) {
+        add_track(newest, on_planes[static_cast<size_t>(x)]);
+      }
     }
     // Observations: match each host's tracked keypoints against the other
     // window keyframes, keeping matches that reproject near the LiDAR point.
@@ -282,13 +312,63 @@ EstimateResult AgentEstimator::Estimate(
     }
     std::vector<UgvWindowFrame> frames;
     frames.reserve(window.size());
-    for (const auto& kf : window) frames.push_back({kf->t_ns, kf->T_wg_c, ugv_camera_.get()});
+    for (const auto& kf : window) {
+      frames.push_back({kf->t_ns, kf->T_wg_c * camera_correction_, ugv_camera_.get()});
+    }
     const Stage1Result s1 = RunStage1(frames, tracks, options_.stage1);
+    if (!s1.success) spdlog::debug("{} stage 1 skipped: {}", agent_, s1.reason);
+    if (s1.success && s1.anchored_to_map) {
+      // This window's correction (mean over its frames), fused into the
+      // running one.
+      Pose window_correction = Pose::Identity();
+      for (int i = 0; i < n_window; ++i) {
+        window_correction = InterpolatePose(
+            window_correction, window[i]->T_wg_c.inverse() * s1.T_wg_c[i], 1.0 / (i + 1));
+      }
+      correction_windows_ = std::min(correction_windows_ + 1, options_.stage1_fusion_windows);
+      camera_correction_ =
+          InterpolatePose(camera_correction_, window_correction, 1.0 / correction_windows_);
+      const Pose d = window_correction.inverse() * camera_correction_;
+      spdlog::debug(
+          "{} stage 1: {} tracks, {} on planes; window correction {:.3f} deg, fused ({} windows) "
+          "{:.3f} deg, differ by {:.3f} deg {:.3f} m",
+          agent_, tracks.size(), s1.plane_tracks,
+          Eigen::AngleAxisd(window_correction.linear()).angle() * 180 / M_PI, correction_windows_,
+          Eigen::AngleAxisd(camera_correction_.linear()).angle() * 180 / M_PI,
+          Eigen::AngleAxisd(d.linear()).angle() * 180 / M_PI, d.translation().norm());
+    }
+    std::map<std::pair<int, int>, double> track_depth;
     if (s1.success) {
       for (size_t t = 0; t < tracks.size(); ++t) {
-        if (!tracks[t].observations.empty()) refined[track_key[t]] = s1.points_wg[t];
+        if (!tracks[t].observations.empty()) track_depth[track_key[t]] = s1.depths[t];
       }
     }
+    // Every inlier point again from the corrected camera: the keypoint's ray
+    // cut with the map plane there, else at its (refined) depth.
+    for (int i : initial.inliers) {
+      const auto key = std::make_pair(origin[i].ugv, origin[i].ugv_keypoint);
+      if (refined.count(key)) continue;
+      const UgvKeyframe& host = *window[key.first];
+      const Eigen::Vector2d f =
+          ugv_camera_->UndistortToNormalized(host.features.keypoints[key.second].cast<double>());
+      const Pose T_new = host.T_wg_c * camera_correction_;
+      const Eigen::Vector3d ray_wg = T_new.linear() * Eigen::Vector3d(f.x(), f.y(), 1.0);
+      const auto tracked = track_depth.find(key);
+      double depth = tracked != track_depth.end()
+                         ? tracked->second
+                         : (host.T_wg_c.inverse() * host.points_wg[key.second]).z();
+      if (!host.planes_wg.empty() && host.planes_wg[key.second].head<3>().squaredNorm() > 0.5) {
+        const Eigen::Vector4d& plane = host.planes_wg[key.second];
+        const double denom = plane.head<3>().dot(ray_wg);
+        // Grazing rays (< ~10 deg to the plane) keep the depth.
+        if (std::abs(denom) > 0.17 * ray_wg.norm()) {
+          const double cut = -(plane.head<3>().dot(T_new.translation()) + plane[3]) / denom;
+          if (cut > 0.1 && std::abs(cut - depth) < 0.5) depth = cut;
+        }
+      }
+      if (depth > 0.1) refined[key] = T_new.translation() + depth * ray_wg;
+    }
+    r.ugv_T_wg_c_refined = window.back()->T_wg_c * camera_correction_;
   }
   r.timing.stage1_ms = step.ElapsedMs();
 
@@ -325,7 +405,35 @@ EstimateResult AgentEstimator::Estimate(
 
   r.success = true;
   r.T_wa_wg = s2.T_wa_wg;
+  // The solver's covariance only knows the noise it models; calibration and
+  // map errors that vary with the geometry show up as scatter between
+  // consecutive estimates instead. Report the sum, so the uncertainty never
+  // claims more than successive estimates agree to.
+  Eigen::Vector4d x;
+  x << s2.T_wa_wg.translation(), ProjectedYaw(s2.T_wa_wg.linear());
+  if (!recent_estimates_.empty()) {
+    x[3] = recent_estimates_.back()[3] + WrapAngle(x[3] - recent_estimates_.back()[3]);
+  }
+  recent_estimates_.push_back(x);
+  while (static_cast<int>(recent_estimates_.size()) > options_.scatter_window) {
+    recent_estimates_.pop_front();
+  }
   r.covariance = s2.covariance;
+  if (recent_estimates_.size() >= 3) {
+    Eigen::Vector4d mean = Eigen::Vector4d::Zero();
+    for (const auto& e : recent_estimates_) mean += e;
+    mean /= static_cast<double>(recent_estimates_.size());
+    Eigen::Matrix4d scatter = Eigen::Matrix4d::Zero();
+    for (const auto& e : recent_estimates_) scatter += (e - mean) * (e - mean).transpose();
+    scatter /= static_cast<double>(recent_estimates_.size() - 1);
+    r.covariance += scatter;
+  }
+  // And a floor for what neither shows: a bias common to consecutive
+  // estimates (the UGV camera's residual extrinsic error seen through the
+  // same part of the map).
+  r.covariance.diagonal() += Eigen::Vector4d(
+      std::pow(options_.bias_sigma_t_m, 2), std::pow(options_.bias_sigma_t_m, 2),
+      std::pow(options_.bias_sigma_t_m, 2), std::pow(options_.bias_sigma_yaw_deg * M_PI / 180, 2));
   r.has_covariance = s2.has_covariance;
   r.inliers = static_cast<int>(initial.inliers.size());
   r.pairs = static_cast<int>(pair_inliers.size());

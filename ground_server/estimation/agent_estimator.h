@@ -30,6 +30,10 @@ struct UgvKeyframe {
   std::vector<float> global_descriptor;
   std::vector<Eigen::Vector3d> points_wg;  ///< per keypoint, meaningful where has_point
   std::vector<uint8_t> has_point;          ///< 1 when the LiDAR map gave the keypoint depth
+  /// Per keypoint, the map surface at its point as (n, d) with n.p + d = 0,
+  /// |n| = 1; all zero where the map is not flat there (or no point). Empty
+  /// when the frontend computed none.
+  std::vector<Eigen::Vector4d> planes_wg;
 };
 
 /// Where UAV keyframes come from (the place database in the daemon).
@@ -57,7 +61,19 @@ struct EstimatorOptions {
   int min_pair_inliers = 12;        ///< a pair with fewer RANSAC inliers gives no consistency term
   int min_inliers = 30;             ///< fewer inliers overall: no estimate
   bool use_stage1 = true;           ///< r_GC (UGV window BA); off for the ablation
-  double track_gate_px = 8.0;       ///< UGV-UGV match must reproject within this (px)
+  int stage1_extra_tracks = 100;  ///< map-plane points of the newest UGV keyframe added to stage 1
+  /// Stage-1 camera corrections are averaged over up to this many windows
+  /// (a running mean that then forgets slowly); 1 uses each window's own.
+  int stage1_fusion_windows = 30;
+  /// Reported covariance = solver covariance + scatter of this many latest
+  /// estimates (unmodelled, geometry-dependent errors).
+  int scatter_window = 8;
+  /// Added to the reported covariance: the bias a ~1 deg, 15 ms UGV camera
+  /// calibration error leaves after stage 1 (measured on simulated data; see
+  /// the README). Lower it for a better calibrated UGV.
+  double bias_sigma_t_m = 0.12;
+  double bias_sigma_yaw_deg = 0.3;
+  double track_gate_px = 8.0;  ///< UGV-UGV match must reproject within this (px)
   MatcherOptions matcher;
   RansacOptions ransac;
   Stage1Options stage1;
@@ -74,6 +90,11 @@ struct EstimatorOptions {
     v("min_pair_inliers", min_pair_inliers);
     v("min_inliers", min_inliers);
     v("use_stage1", use_stage1);
+    v("stage1_extra_tracks", stage1_extra_tracks);
+    v("stage1_fusion_windows", stage1_fusion_windows);
+    v("scatter_window", scatter_window);
+    v("bias_sigma_t_m", bias_sigma_t_m);
+    v("bias_sigma_yaw_deg", bias_sigma_yaw_deg);
     v("track_gate_px", track_gate_px);
     v("matcher", matcher);
     v("ransac", ransac);
@@ -106,7 +127,12 @@ struct EstimateResult {
   int64_t newest_air_t_ns = 0;  ///< air clock time of the newest UAV keyframe used
   double rms_reprojection_px = 0;
   Pose T_wa_wg_initial = Pose::Identity();  ///< RANSAC result, before refinement
-  FixGate::Decision gate;                   ///< whether this estimate is published, and the status
+  /// The newest UGV keyframe's camera pose from LIO and as used after stage 1
+  /// (with the fused correction; equal when stage 1 never ran), for
+  /// diagnostics.
+  Pose ugv_T_wg_c_lio = Pose::Identity();
+  Pose ugv_T_wg_c_refined = Pose::Identity();
+  FixGate::Decision gate;  ///< whether this estimate is published, and the status
   EstimateTiming timing;
 };
 
@@ -135,6 +161,13 @@ class AgentEstimator {
   std::shared_ptr<const Camera> ugv_camera_;
   std::map<std::string, std::shared_ptr<const Camera>> air_cameras_;
   FixGate gate_;
+  /// The UGV camera's pose correction against the LiDAR map (camera frame,
+  /// T_c_lio_c), fused over stage-1 windows: the extrinsic and time-offset
+  /// error it absorbs is nearly constant, so it is averaged rather than
+  /// re-estimated from each short window alone.
+  Pose camera_correction_ = Pose::Identity();
+  int correction_windows_ = 0;
+  std::deque<Eigen::Vector4d> recent_estimates_;  ///< (x, y, z, yaw) of the latest estimates
 };
 
 }  // namespace ag

@@ -83,6 +83,37 @@ struct DepthPriorError {
   double inv_sigma_;
 };
 
+/// Stage 1: a map point in inverse-depth form held to the LiDAR map's
+/// surface there, plane (n, d) with n.p + d = 0:
+///   p_wg = R_h * f_h / rho + t_h,   r = (n . p_wg + d) / sigma.
+/// Parameters: q_h, t_h, rho. Unlike a depth prior, this ties the point to
+/// the world, so the host pose cannot carry it off the surface.
+struct PointToPlaneError {
+  PointToPlaneError(const Eigen::Vector2d& f_h, const Eigen::Vector4d& plane, double sigma_m)
+      : f_h_(f_h), plane_(plane), inv_sigma_(1.0 / sigma_m) {}
+
+  template <typename T>
+  bool operator()(const T* q_h, const T* t_h, const T* rho, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> R_h(q_h);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_h(t_h);
+    const Eigen::Matrix<T, 3, 1> f(T(f_h_.x()), T(f_h_.y()), T(1.0));
+    const Eigen::Matrix<T, 3, 1> p_wg = R_h * (f / rho[0]) + p_h;
+    residual[0] = (plane_.head<3>().template cast<T>().dot(p_wg) + T(plane_[3])) * inv_sigma_;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Vector2d& f_h, const Eigen::Vector4d& plane,
+                                     double sigma_m) {
+    return new ceres::AutoDiffCostFunction<PointToPlaneError, 1, 4, 3, 1>(
+        new PointToPlaneError(f_h, plane, sigma_m));
+  }
+
+ private:
+  Eigen::Vector2d f_h_;
+  Eigen::Vector4d plane_;
+  double inv_sigma_;
+};
+
 /// Relative-motion prior between two 6-DoF poses T_w_a and T_w_b, measured as
 /// T_a_b by odometry (LIO for UGV keyframes, VIO for UAV keyframes):
 ///   dT = T_a_b_measured^-1 * (T_w_a^-1 * T_w_b),

@@ -68,6 +68,10 @@ void Stage1Options::Check() const {
   CheckOption(depth_sigma_m > 0, "depth_sigma_m", "must be > 0");
   CheckOption(lio_sigma_t_m > 0, "lio_sigma_t_m", "must be > 0");
   CheckOption(lio_sigma_rot_deg > 0, "lio_sigma_rot_deg", "must be > 0");
+  CheckOption(plane_sigma_m > 0, "plane_sigma_m", "must be > 0");
+  CheckOption(min_plane_tracks >= 3, "min_plane_tracks", "must be >= 3");
+  CheckOption(pose_prior_sigma_t_m > 0, "pose_prior_sigma_t_m", "must be > 0");
+  CheckOption(pose_prior_sigma_rot_deg > 0, "pose_prior_sigma_rot_deg", "must be > 0");
   CheckOption(max_iterations > 0, "max_iterations", "must be > 0");
 }
 
@@ -98,27 +102,40 @@ Stage1Result RunStage1(const std::vector<UgvWindowFrame>& frames,
   for (const UgvWindowFrame& f : frames) poses.emplace_back(f.T_wg_c);
   for (PoseBlock& p : poses) p.AddTo(&problem);
   std::vector<double> rho(tracks.size());
+  auto seen_twice = [&](const UgvTrack& track) {
+    for (const auto& obs : track.observations) {
+      if (obs.first != track.host_frame && obs.first >= 0 && obs.first < n_frames) return true;
+    }
+    return false;
+  };
+  int plane_tracks = 0;
+  for (const UgvTrack& track : tracks)
+    plane_tracks += (track.has_plane() && seen_twice(track)) ? 1 : 0;
+  const bool anchored = options.anchor_to_map && plane_tracks >= options.min_plane_tracks;
   int observations = 0;
   for (size_t k = 0; k < tracks.size(); ++k) {
     const UgvTrack& track = tracks[k];
     rho[k] = 1.0 / track.lidar_depth;
-    bool used = false;
+    if (!seen_twice(track)) continue;
+    PoseBlock& h = poses[track.host_frame];
     for (const auto& [j, uv] : track.observations) {
       if (j == track.host_frame || j < 0 || j >= n_frames) continue;
-      PoseBlock& h = poses[track.host_frame];
       PoseBlock& target = poses[j];
       problem.AddResidualBlock(InverseDepthReprojectionError::Create(frames[j].camera, track.f_host,
                                                                      uv, options.sigma_px),
                                MakeLoss(options.loss), h.q.data(), h.t.data(), target.q.data(),
                                target.t.data(), &rho[k]);
-      used = true;
       ++observations;
     }
-    if (used) {
+    if (anchored && track.has_plane()) {
+      problem.AddResidualBlock(
+          PointToPlaneError::Create(track.f_host, track.plane, options.plane_sigma_m),
+          MakeLoss(options.loss), h.q.data(), h.t.data(), &rho[k]);
+    } else {
       problem.AddResidualBlock(DepthPriorError::Create(track.lidar_depth, options.depth_sigma_m),
                                nullptr, &rho[k]);
-      problem.SetParameterLowerBound(&rho[k], 0, 1e-3);  // at most 1 km
     }
+    problem.SetParameterLowerBound(&rho[k], 0, 1e-3);  // at most 1 km
   }
   if (observations == 0) {
     result.reason = "no UGV track is seen by two keyframes of the window";
@@ -132,9 +149,22 @@ Stage1Result RunStage1(const std::vector<UgvWindowFrame>& frames,
         nullptr, poses[i].q.data(), poses[i].t.data(), poses[i + 1].q.data(),
         poses[i + 1].t.data());
   }
-  // Gauge: the oldest keyframe's pose is held; LIO relative motion and the
-  // depth priors fix the rest (scale included).
-  poses[0].SetConstant(&problem);
+  if (anchored) {
+    // Gauge: the map planes, and each pose's loose prior towards LIO.
+    for (int i = 0; i < n_frames; ++i) {
+      const Pose& T = frames[i].T_wg_c;
+      problem.AddResidualBlock(PosePriorError::Create(Eigen::Quaterniond(T.linear()),
+                                                      T.translation(), options.pose_prior_sigma_t_m,
+                                                      options.pose_prior_sigma_rot_deg * kDegToRad),
+                               nullptr, poses[i].q.data(), poses[i].t.data());
+    }
+  } else {
+    // Gauge: the oldest keyframe's pose is held; LIO relative motion and the
+    // depth priors fix the rest (scale included).
+    poses[0].SetConstant(&problem);
+  }
+  result.anchored_to_map = anchored;
+  result.plane_tracks = plane_tracks;
 
   ceres::Solver::Summary summary;
   ceres::Solve(SolverOptions(options.max_iterations), &problem, &summary);

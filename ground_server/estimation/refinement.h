@@ -41,6 +41,10 @@ struct UgvTrack {
   int host_frame = 0;      ///< frame whose ray anchors the point
   Eigen::Vector2d f_host;  ///< undistorted normalised coords in the host
   double lidar_depth = 0;  ///< z-depth in the host camera from the LiDAR map (m)
+  /// The map surface at the point, (n, d) with n.p + d = 0 in wg, |n| = 1;
+  /// zero when the map is not flat there.
+  Eigen::Vector4d plane = Eigen::Vector4d::Zero();
+  bool has_plane() const { return plane.head<3>().squaredNorm() > 0.5; }
   /// (frame, pixel) of every other observation.
   std::vector<std::pair<int, Eigen::Vector2d>> observations;
 };
@@ -50,6 +54,17 @@ struct Stage1Options {
   double depth_sigma_m = 0.05;     ///< LiDAR depth prior (m)
   double lio_sigma_t_m = 0.02;     ///< LIO relative translation between keyframes (m)
   double lio_sigma_rot_deg = 0.2;  ///< LIO relative rotation between keyframes (deg)
+  /// Anchor points to the LiDAR map surface (point-to-plane) and let the whole
+  /// window move against the map, so a camera-LiDAR extrinsic or time-offset
+  /// error is corrected instead of being frozen into the gauge frame.
+  bool anchor_to_map = true;
+  double plane_sigma_m = 0.03;  ///< point-to-plane (map noise and plane fit) (m)
+  int min_plane_tracks = 15;    ///< fewer multi-view tracks on planes: gauge by the oldest pose
+  /// With map anchoring, the gauge is fixed by the map and by a prior of
+  /// every window pose towards its LIO-interpolated value, as loose as the
+  /// expected calibration error.
+  double pose_prior_sigma_t_m = 0.05;
+  double pose_prior_sigma_rot_deg = 1.5;
   RobustLossOptions loss;
   int max_iterations = 20;  ///< Levenberg-Marquardt iterations
 
@@ -59,6 +74,11 @@ struct Stage1Options {
     v("depth_sigma_m", depth_sigma_m);
     v("lio_sigma_t_m", lio_sigma_t_m);
     v("lio_sigma_rot_deg", lio_sigma_rot_deg);
+    v("anchor_to_map", anchor_to_map);
+    v("plane_sigma_m", plane_sigma_m);
+    v("min_plane_tracks", min_plane_tracks);
+    v("pose_prior_sigma_t_m", pose_prior_sigma_t_m);
+    v("pose_prior_sigma_rot_deg", pose_prior_sigma_rot_deg);
     v("loss", loss);
     v("max_iterations", max_iterations);
   }
@@ -74,13 +94,18 @@ struct Stage1Result {
   double initial_cost = 0;
   double final_cost = 0;
   int iterations = 0;
+  bool anchored_to_map = false;  ///< gauge from the map (else the oldest pose was held)
+  int plane_tracks = 0;          ///< multi-view tracks with a point-to-plane term
 };
 
 /// Sliding-window bundle adjustment of UGV camera poses and map points in
-/// inverse-depth form, with LiDAR depth priors and LIO relative-motion
-/// priors. The gauge (6 DoF; scale is fixed by the depth priors) is fixed by
-/// holding the oldest keyframe's pose constant: the window is refined
-/// relative to it, as LIO is trusted over short spans.
+/// inverse-depth form, with LIO relative-motion priors. Points on a flat
+/// map surface are held to it (point-to-plane), the others by their LiDAR
+/// depth. Gauge, explicitly: with enough multi-view plane tracks the map
+/// fixes it (plus a loose prior of each pose towards LIO), so the window as
+/// a whole can move against the map and absorb the camera's extrinsic and
+/// time-offset error; otherwise the oldest keyframe's pose is held constant
+/// and the window is refined relative to it.
 Stage1Result RunStage1(const std::vector<UgvWindowFrame>& frames,
                        const std::vector<UgvTrack>& tracks, const Stage1Options& options);
 

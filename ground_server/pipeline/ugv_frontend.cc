@@ -51,18 +51,25 @@ UgvFrontend::Result UgvFrontend::Process(int64_t id, int64_t t_camera_ns, const 
   kf->global_descriptor = global_->Compute(image, kf->features);
   result.global_ms = MsSince(start);
   start = std::chrono::steady_clock::now();
-  DepthAssociationResult depth;
+  const size_t n = kf->features.size();
+  kf->points_wg.resize(n);
+  kf->has_point.resize(n);
+  kf->planes_wg.assign(n, Eigen::Vector4d::Zero());
   {
     const VoxelMap::Reader reader = map.Read();
-    depth = depth_.Associate(reader.grid(), kf->T_wg_c, kf->features.keypoints);
+    const DepthAssociationResult depth =
+        depth_.Associate(reader.grid(), kf->T_wg_c, kf->features.keypoints);
+    for (size_t i = 0; i < n; ++i) {
+      const KeypointDepth& d = depth.keypoints[i];
+      kf->has_point[i] = d.valid ? 1 : 0;
+      kf->points_wg[i] = d.p_in_wg;
+      if (!d.valid || !options_.fit_planes) continue;
+      if (const auto plane = FitLocalPlane(reader.grid(), d.p_in_wg, options_.plane)) {
+        kf->planes_wg[i] << plane->normal, -plane->normal.dot(plane->point);
+      }
+    }
   }
   result.depth_ms = MsSince(start);
-  kf->points_wg.resize(depth.keypoints.size());
-  kf->has_point.resize(depth.keypoints.size());
-  for (size_t i = 0; i < depth.keypoints.size(); ++i) {
-    kf->has_point[i] = depth.keypoints[i].valid ? 1 : 0;
-    kf->points_wg[i] = depth.keypoints[i].p_in_wg;
-  }
   result.keyframe = std::move(kf);
   return result;
 }

@@ -17,6 +17,7 @@
 #include "ground_server/depth/depth_association.h"
 #include "ground_server/estimation/agent_estimator.h"
 #include "ground_server/odometry/odometry_buffer.h"
+#include "ground_server/voxel_map/local_plane.h"
 #include "ground_server/voxel_map/voxel_map.h"
 #include "ground_server/voxel_map/voxel_map_builder.h"
 
@@ -27,11 +28,15 @@ class UgvFrontend {
   struct Options {
     DepthAssociator::Options depth;
     double min_depth_fraction = 0.05;  ///< warn-level: fewer keypoints with depth than this
+    bool fit_planes = true;            ///< map surface per keypoint (stage 1 anchors points to it)
+    LocalPlaneOptions plane;
 
     template <class V>
     void VisitFields(V& v) {
       v("depth", depth);
       v("min_depth_fraction", min_depth_fraction);
+      v("fit_planes", fit_planes);
+      v("plane", plane);
     }
     void Check() const;
   };

@@ -273,6 +273,76 @@ TEST(Stage1Test, RecoversPerturbedUgvPoses) {
   EXPECT_LT(worst, 0.1);
 }
 
+TEST(Stage1Test, MapAnchoringCorrectsAConstantCameraMountError) {
+  // The whole window's camera is off by the same 1 deg / 2 cm (extrinsic
+  // error): the oldest-pose gauge would keep it; anchoring points to the
+  // map's planes (ground, and walls at x = 8 and y = 4) removes it.
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::normal_distribution<double> n(0, 1);
+  Pose mount_error = Pose::Identity();
+  mount_error.linear() =
+      Eigen::AngleAxisd(1.0 * M_PI / 180, Eigen::Vector3d(0.3, 1.0, 0.5).normalized())
+          .toRotationMatrix();
+  mount_error.translation() = Eigen::Vector3d(0.01, -0.015, 0.005);
+  std::vector<Pose> truth;
+  std::vector<UgvWindowFrame> frames;
+  for (int i = 0; i < 5; ++i) {
+    const Eigen::Vector3d pos(0.5 * i, 0.3 * i, 0.5);
+    truth.push_back(LookAt(pos, Eigen::Vector3d(8, 2.5 + 0.2 * i, 0.3)));
+    frames.push_back({i * 500000000LL, truth.back() * mount_error, &camera});
+  }
+  const std::vector<Eigen::Vector4d> planes = {
+      {0, 0, 1, 0}, {1, 0, 0, -8}, {0, 1, 0, -4}};  // n.p + d = 0
+  std::vector<UgvTrack> tracks;
+  for (int k = 0; k < 300; ++k) {
+    const int plane = k % 3;
+    Eigen::Vector3d p;
+    if (plane == 0) p = {2 + 5 * (u(rng) + 1) / 2, 2.5 * (u(rng) + 1) / 2, 0};
+    if (plane == 1) p = {8, 2 * u(rng) + 2, 1.5 * (u(rng) + 1)};
+    if (plane == 2) p = {4 + 3.5 * (u(rng) + 1) / 2, 4, 1.5 * (u(rng) + 1)};
+    UgvTrack t;
+    t.host_frame = k % 5;
+    const Eigen::Vector3d p_h = truth[t.host_frame].inverse() * p;
+    Eigen::Vector2d uv_h;
+    if (p_h.z() < 0.5 || !camera.Project(p_h, &uv_h) || !camera.InImage(uv_h)) continue;
+    t.f_host = p_h.head<2>() / p_h.z();
+    // What depth association gives: the map along the (wrong) ray.
+    const Pose& T_h = frames[t.host_frame].T_wg_c;
+    const Eigen::Vector3d ray = T_h.linear() * Eigen::Vector3d(t.f_host.x(), t.f_host.y(), 1);
+    const Eigen::Vector4d& pl = planes[plane];
+    t.lidar_depth = -(pl.head<3>().dot(T_h.translation()) + pl[3]) / pl.head<3>().dot(ray);
+    if (!(t.lidar_depth > 0.5)) continue;
+    t.plane = pl;
+    for (int j = 0; j < 5; ++j) {
+      Eigen::Vector2d uv;
+      if (j != t.host_frame && camera.Project(truth[j].inverse() * p, &uv) && camera.InImage(uv)) {
+        t.observations.emplace_back(j, uv + 0.3 * Eigen::Vector2d(n(rng), n(rng)));
+      }
+    }
+    if (!t.observations.empty()) tracks.push_back(t);
+  }
+  ASSERT_GT(tracks.size(), 100u);
+  auto rot_err_deg = [](const Pose& a, const Pose& b) {
+    return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() * 180 / M_PI;
+  };
+  Stage1Options o;
+  const Stage1Result anchored = RunStage1(frames, tracks, o);
+  ASSERT_TRUE(anchored.success) << anchored.reason;
+  EXPECT_TRUE(anchored.anchored_to_map);
+  EXPECT_EQ(anchored.plane_tracks, static_cast<int>(tracks.size()));
+  o.anchor_to_map = false;
+  const Stage1Result held = RunStage1(frames, tracks, o);
+  ASSERT_TRUE(held.success) << held.reason;
+  EXPECT_FALSE(held.anchored_to_map);
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_LT(rot_err_deg(anchored.T_wg_c[i], truth[i]), 0.1) << "frame " << i;
+    EXPECT_LT(TErr(anchored.T_wg_c[i], truth[i]), 0.01) << "frame " << i;
+    EXPECT_GT(rot_err_deg(held.T_wg_c[i], truth[i]), 0.5) << "frame " << i;
+  }
+}
+
 TEST(Stage1Test, NeedsTwoFramesAndTracks) {
   const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   std::vector<UgvWindowFrame> frames(1);
