@@ -16,6 +16,38 @@ namespace {
 
 constexpr int64_t kSecond = 1000000000LL;
 
+/// Where an agent's odometry world is in its true world at t_ns:
+/// T_world_odom = T_world_body(t) T_odom_body(t)^-1 (identity without
+/// drift). `body_offset` is what the odometry tracks instead of the body
+/// (LIO tracks the LiDAR: T_b_l_true T_b_l_nominal^-1), so that a constant
+/// mounting error is not mistaken for drift.
+std::optional<Pose> OdometryWorldInTrueWorld(const AgentData& agent, int64_t t_ns,
+                                             const Pose& body_offset = Pose::Identity()) {
+  const InterpolationResult odom = InterpolateInBuffer(agent.odometry, t_ns);
+  const InterpolationResult truth = InterpolateInBuffer(agent.groundtruth, t_ns);
+  if (!odom.ok() || !truth.ok()) return std::nullopt;
+  return ProjectTo4Dof(truth.T * body_offset * odom.T.inverse());
+}
+
+/// The relation between the two odometry worlds when the estimate was made
+/// (UAV keyframe at t_air, air clock; UGV at t_ground): the true T_wa_wg with
+/// both agents' odometry drift applied. No estimator can do better than this
+/// from odometry-world data; the difference to groundtruth.yaml is drift.
+std::optional<Pose> ObservableTruth(const Dataset& dataset, const AgentData& air, int64_t t_air,
+                                    int64_t t_ground, const Pose& T_wa_wg) {
+  Pose lidar_offset = Pose::Identity();
+  if (dataset.groundtruth && dataset.groundtruth->ground_true_lidar &&
+      dataset.ground.calibration.lidar) {
+    lidar_offset = dataset.groundtruth->ground_true_lidar->T_body_lidar *
+                   dataset.ground.calibration.lidar->T_body_lidar.inverse();
+  }
+  const std::optional<Pose> T_wa_oa = OdometryWorldInTrueWorld(air, t_air);
+  const std::optional<Pose> T_wg_og =
+      OdometryWorldInTrueWorld(dataset.ground, t_ground, lidar_offset);
+  if (!T_wa_oa || !T_wg_og) return std::nullopt;
+  return ProjectTo4Dof(T_wa_oa->inverse() * T_wa_wg * *T_wg_og);
+}
+
 int64_t SecondsToNs(double s) { return static_cast<int64_t>(std::llround(s * 1e9)); }
 
 // A dataset item in the merged timeline. Equal times: odometry first, so a
@@ -144,17 +176,60 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
       log.reason = r.success ? r.gate.reason : r.reason;
       log.T_wa_wg = r.T_wa_wg;
       log.inliers = r.inliers;
+      log.covariance = r.covariance;
+      log.has_covariance = r.has_covariance;
       if (r.success) {
         report.timing.estimate.push_back(r.timing.total_ms);
         report.timing.stage1.push_back(r.timing.stage1_ms);
         report.timing.stage2.push_back(r.timing.stage2_ms);
-        if (s.truth) log.error = FourDofError(r.T_wa_wg, *s.truth);
+        if (s.truth) {
+          log.error = FourDofError(r.T_wa_wg, *s.truth);
+          const std::optional<Pose> observable =
+              ObservableTruth(dataset, *s.data, r.newest_air_t_ns, t_ns, *s.truth);
+          if (observable) {
+            log.drift_free_error = FourDofError(r.T_wa_wg, *observable);
+            Eigen::Vector4d e;
+            e.head<3>() = r.T_wa_wg.translation() - observable->translation();
+            e[3] = WrapAngle(ProjectedYaw(r.T_wa_wg.linear()) - ProjectedYaw(observable->linear()));
+            log.drift_free_residual = e;
+          }
+        }
       }
       if (r.gate.publish) {
-        report.agents[s.name].fixes.push_back({t_ns, r.T_wa_wg, log.error});
+        report.agents[s.name].fixes.push_back({t_ns, r.T_wa_wg, log.error, log.drift_free_error});
       }
       spdlog::debug("estimate {} t={:.1f}: {} {}", s.name, 1e-9 * (t_ns - t0),
                     r.success ? "ok" : "failed", log.reason);
+      if (r.success && dataset.groundtruth && dataset.groundtruth->ground_true_camera) {
+        // How far stage 1 moved the newest UGV camera towards the truth.
+        const CameraCalibration& cam = *dataset.groundtruth->ground_true_camera;
+        const InterpolationResult body =
+            InterpolateInBuffer(dataset.ground.groundtruth, t_ns + SecondsToNs(cam.time_offset_s));
+        if (body.ok()) {
+          const Pose truth = body.T * cam.T_body_camera;
+          auto err = [&](const Pose& T) {
+            const Pose d = truth.inverse() * T;
+            return std::make_pair(Eigen::AngleAxisd(d.linear()).angle() * 180 / M_PI,
+                                  d.translation().norm());
+          };
+          if (log.error && log.drift_free_error) {
+            const PoseError initial = FourDofError(r.T_wa_wg_initial, *s.truth);
+            spdlog::debug(
+                "  T_wa_wg error: RANSAC {:.3f} m {:.3f} deg, final {:.3f} m {:.3f} deg, "
+                "drift-free {:.3f} m {:.3f} deg (xyz {:+.3f} {:+.3f} {:+.3f}), {} inliers, {} "
+                "pairs",
+                initial.translation_m, initial.yaw_deg, log.error->translation_m,
+                log.error->yaw_deg, log.drift_free_error->translation_m,
+                log.drift_free_error->yaw_deg, (*log.drift_free_residual)[0],
+                (*log.drift_free_residual)[1], (*log.drift_free_residual)[2], r.inliers, r.pairs);
+          }
+          const auto before = err(r.ugv_T_wg_c_lio);
+          const auto after = err(r.ugv_T_wg_c_refined);
+          spdlog::debug(
+              "  UGV camera vs truth: LIO {:.3f} deg {:.3f} m, stage 1 {:.3f} deg {:.3f} m",
+              before.first, before.second, after.first, after.second);
+        }
+      }
       result.estimates[s.name].push_back(log);
     }
   };

@@ -59,6 +59,12 @@ struct EstimateLog {
   std::string reason;
   Pose T_wa_wg;
   std::optional<PoseError> error;
+  std::optional<PoseError> drift_free_error;  ///< see AgentRecord::Fix
+  /// The estimate minus that drift-free truth, (x, y, z, yaw) in m and rad,
+  /// for consistency checks against `covariance`.
+  std::optional<Eigen::Vector4d> drift_free_residual;
+  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
+  bool has_covariance = false;
   int inliers = 0;
 };
 

@@ -42,6 +42,10 @@ struct AgentRecord {
     int64_t t_ns = 0;
     Pose T_wa_wg;
     std::optional<PoseError> error;  ///< when ground truth exists
+    /// Against the relation of the two odometry worlds at the estimate's
+    /// times (truth with the odometry drift of both agents applied): what the
+    /// estimator could observe. Needs groundtruth.tum of both agents.
+    std::optional<PoseError> drift_free_error;
   };
   std::vector<Fix> fixes;  ///< published fixes only
 };

@@ -1,0 +1,98 @@
+// The whole estimator, end to end on the simulator's `small` scenario
+// (lengthened to get several estimates): fixes arrive, they are accurate,
+// their covariance is consistent with their actual error, and no false fix
+// is published, also where the UAV never sees what the UGV sees.
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <cmath>
+
+#include "common/dataset/dataset.h"
+#include "tests/support/test_support.h"
+#include "tools/evaluation/evaluator.h"
+#include "tools/sim/scenario.h"
+#include "tools/sim/simulator.h"
+
+namespace ag {
+namespace {
+
+// `small`, seed 3, lengthened to 9 s; no depth images (not needed here).
+Scenario SmallScenario(double duration_s) {
+  Scenario s = LoadScenario(test::SourceDir() + "/config/scenarios/small.yaml");
+  s.options.duration_s = duration_s;
+  s.options.ground.camera.depth = false;
+  for (auto& [name, air] : s.air) air.camera.depth = false;
+  return s;
+}
+
+EvaluateOptions XFeatOptions(const std::string& model) {
+  EvaluateOptions o;
+  o.features.model_path = model;
+  return o;
+}
+
+TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
+  AG_REQUIRE_SHARED(model, "models/xfeat.onnx");
+  test::TempDir tmp;
+  Simulation(SmallScenario(9.0), 3).Write(tmp / "ds");
+  const EvaluationResult result = Evaluate(ReadDataset(tmp / "ds"), XFeatOptions(model));
+  const nlohmann::json& agent = result.report["agents"]["uav1"];
+  SCOPED_TRACE(agent.dump(1));
+
+  // Keyframes at 1 Hz, a fix after two agreeing estimates: from ~3 s on.
+  EXPECT_GE(agent["fixes"].get<int>(), 4);
+  EXPECT_EQ(agent["false_fixes"].get<int>(), 0);
+  // Bounds from what this pipeline achieves here (README, "Accuracy"): the
+  // UGV camera is ~1.2 deg and 15 ms off its nominal calibration; stage 1
+  // removes about half of that in 9 s, and at the 10-25 m of the matched
+  // structure the rest is 5-35 cm. These bounds fail on a regression of
+  // matching, RANSAC or refinement (without stage 1 the median yaw error here
+  // is 0.65 deg), not on the known calibration limit.
+  EXPECT_LT(agent["translation_error_m"]["median"].get<double>(), 0.2);
+  EXPECT_LT(agent["yaw_error_deg"]["median"].get<double>(), 0.6);
+  EXPECT_LT(agent["translation_error_m"]["max"].get<double>(), 0.5);
+  EXPECT_LT(agent["final"]["yaw_error_deg"].get<double>(), 1.0);
+
+  // Consistency (NEES): for a consistent 4-DoF covariance the mean of
+  // e^T P^-1 e over estimates is 4. Too large: overconfident.
+  double nees_sum = 0;
+  int n = 0;
+  for (const EstimateLog& e : result.estimates.at("uav1")) {
+    if (!e.published || !e.has_covariance || !e.drift_free_residual) continue;
+    const Eigen::Vector4d r = *e.drift_free_residual;
+    nees_sum += r.dot(e.covariance.ldlt().solve(r));
+    ++n;
+  }
+  ASSERT_GE(n, 3);
+  const double nees = nees_sum / n;
+  RecordProperty("mean_nees", std::to_string(nees));
+  EXPECT_LT(nees, 3 * 4.0) << "covariance overconfident: mean NEES " << nees;
+  EXPECT_GT(nees, 4.0 / 50) << "covariance uselessly pessimistic: mean NEES " << nees;
+}
+
+TEST(EvaluateSim, NoFalseFixWhenTheUavNeverSeesTheUgvArea) {
+  AG_REQUIRE_SHARED(model, "models/xfeat.onnx");
+  // The same world; the UAV circles a far corner, facing away from the
+  // UGV's circle.
+  Scenario s = SmallScenario(8.0);
+  AirAgentOptions& uav = s.air.begin()->second;
+  uav.path.center = {15.0, -15.0};
+  uav.path.radius_m = 3.0;
+  uav.path.heading = "tangent";
+  uav.path.yaw_deg = 90.0;  // outwards
+  test::TempDir tmp;
+  Simulation(s, 3).Write(tmp / "ds");
+  const EvaluationResult result = Evaluate(ReadDataset(tmp / "ds"), XFeatOptions(model));
+  const nlohmann::json& agent = result.report["agents"]["uav1"];
+  SCOPED_TRACE(agent.dump(1));
+  EXPECT_EQ(agent["false_fixes"].get<int>(), 0);
+  for (const EstimateLog& e : result.estimates.at("uav1")) {
+    if (e.published) {
+      ASSERT_TRUE(e.error.has_value());
+      EXPECT_LT(e.error->translation_m, 1.0);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ag
