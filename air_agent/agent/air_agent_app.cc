@@ -10,6 +10,7 @@
 #include "common/core/agent_name.h"
 #include "common/dataset/dataset.h"
 #include "common/wire/channels.h"
+#include "common/wire/lcm_url.h"
 #include "common/wire/message_codec.h"
 #include "lcmtypes/checked_decode.h"
 
@@ -32,6 +33,8 @@ struct AirAgentApp::Impl {
 
 void AirAgentOptions::Check() const {
   CheckOption(IsValidAgentName(agent), "agent", "'" + agent + "' is not [a-z0-9_]+");
+  CheckOption(lcm_recv_buf_bytes >= 0, "lcm_recv_buf_bytes", "must be >= 0");
+  CheckOption(lcm_min_recv_buf_bytes >= 0, "lcm_min_recv_buf_bytes", "must be >= 0");
   CheckOption(stats_period_s > 0, "stats_period_s", "must be > 0");
   CheckOption(vio_buffer_poses >= 2, "vio_buffer_poses", "must be >= 2");
   CheckOption(vio_queue_messages >= 1, "vio_queue_messages", "must be >= 1");
@@ -39,10 +42,12 @@ void AirAgentOptions::Check() const {
 
 AirAgentApp::AirAgentApp(const AirAgentOptions& options) : options_(options), impl_(new Impl) {
   options_.Check();
-  impl_->lcm = std::make_unique<lcm::LCM>(options_.lcm_url);
-  if (!impl_->lcm->good()) {
-    throw std::runtime_error("cannot open LCM with url '" + options_.lcm_url + "'");
-  }
+  const LcmUrlPlan plan =
+      PlanLcmUrl(options_.lcm_url, options_.lcm_recv_buf_bytes, options_.lcm_min_recv_buf_bytes);
+  spdlog::info("{}", plan.info);
+  if (!plan.warning.empty()) spdlog::warn("{}", plan.warning);
+  impl_->lcm = std::make_unique<lcm::LCM>(plan.url);
+  if (!impl_->lcm->good()) throw std::runtime_error("cannot open LCM with url '" + plan.url + "'");
   impl_->features = CreateFeatureExtractor(options_.features);
   impl_->global =
       CreateGlobalDescriptorExtractor(options_.global_descriptor, impl_->features->type());

@@ -16,8 +16,14 @@
 namespace ag {
 
 struct AirAgentOptions {
-  std::string agent = "uav0";   ///< agent name ([a-z0-9_]+), channel suffix
-  std::string lcm_url;          ///< LCM provider URL; empty: LCM's default / $LCM_DEFAULT_URL
+  std::string agent = "uav0";  ///< agent name ([a-z0-9_]+), channel suffix
+  std::string lcm_url;         ///< LCM provider URL; empty: LCM's default / $LCM_DEFAULT_URL
+  /// Live mode receives images (~200 kB bursts): kernel receive buffer asked
+  /// for when lcm_url is udpm:// without a recv_buf_size (bytes; 0: leave
+  /// the URL alone).
+  int64_t lcm_recv_buf_bytes = 8 * 1024 * 1024;
+  /// Below this granted buffer (bytes) a warning names net.core.rmem_max.
+  int64_t lcm_min_recv_buf_bytes = 2 * 1024 * 1024;
   double stats_period_s = 5.0;  ///< status line period (s)
   int vio_buffer_poses = 2000;  ///< live mode: VIO poses kept for interpolation
   /// Live mode: VIO messages LCM may queue while a keyframe is processed.
@@ -36,6 +42,8 @@ struct AirAgentOptions {
   void VisitFields(V& v) {
     v("agent", agent);
     v("lcm_url", lcm_url);
+    v("lcm_recv_buf_bytes", lcm_recv_buf_bytes);
+    v("lcm_min_recv_buf_bytes", lcm_min_recv_buf_bytes);
     v("stats_period_s", stats_period_s);
     v("vio_buffer_poses", vio_buffer_poses);
     v("vio_queue_messages", vio_queue_messages);
