@@ -208,10 +208,11 @@ void CheckOptions(const Options& options) {
   internal::CheckIfAvailable(options);
 }
 
-/// Reads options from a YAML map; keys absent keep their defaults, unknown
-/// keys are rejected, then CheckOptions. `source` names the file for errors.
+/// Reads options from a YAML map without validating them: keys absent keep
+/// their defaults, unknown keys are rejected. For callers that still apply
+/// overrides (command-line flags) before CheckOptions.
 template <class Options>
-Options LoadOptions(const YAML::Node& node, const std::string& source,
+Options ReadOptions(const YAML::Node& node, const std::string& source,
                     const std::string& prefix = "") {
   Options options;
   if (node.IsDefined() && !node.IsNull()) {
@@ -224,6 +225,15 @@ Options LoadOptions(const YAML::Node& node, const std::string& source,
     options.VisitFields(visitor);
     visitor.RejectUnknownKeys();
   }
+  return options;
+}
+
+/// Reads options from a YAML map; keys absent keep their defaults, unknown
+/// keys are rejected, then CheckOptions. `source` names the file for errors.
+template <class Options>
+Options LoadOptions(const YAML::Node& node, const std::string& source,
+                    const std::string& prefix = "") {
+  Options options = ReadOptions<Options>(node, source, prefix);
   try {
     CheckOptions(options);
   } catch (const OptionError& e) {

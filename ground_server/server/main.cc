@@ -30,9 +30,12 @@ int main(int argc, char** argv) {
   app.add_flag("--print-config", print_config, "print the effective configuration and exit");
   CLI11_PARSE(app, argc, argv);
   try {
+    // Flags override the file; validation comes after both (a --config
+    // without calibration_file is fine with --calibration).
     ag::GroundServerOptions options =
-        config_path.empty() ? ag::GroundServerOptions{}
-                            : ag::LoadOptionsFile<ag::GroundServerOptions>(config_path);
+        config_path.empty()
+            ? ag::GroundServerOptions{}
+            : ag::ReadOptions<ag::GroundServerOptions>(ag::LoadYamlFile(config_path), config_path);
     if (!calibration.empty()) options.calibration_file = calibration;
     if (!persistence.empty()) options.persistence_dir = persistence;
     if (!model.empty()) options.features.model_path = model;
