@@ -739,6 +739,7 @@ void GroundServerApp::Impl::ProcessAirPacket(const AirPacket& packet) {
       // First packet after our own restart, numbered below what the restored
       // database holds: the UAV restarted while we were down.
       restarted = true;
+      previous_seq = agent->max_stored_seq;
       agent->seq_offset = agent->max_stored_seq + 1 - raw_seq;
     }
     agent->last_raw_seq = raw_seq;
@@ -747,8 +748,8 @@ void GroundServerApp::Impl::ProcessAirPacket(const AirPacket& packet) {
   if (restarted) {
     Count(&GroundServerStats::air_restarts);
     Warn("air agent restarts",
-         fmt::format("{}: keyframe seq {} after {}: air_agent restarted? its keyframes are "
-                     "stored from seq {} on",
+         fmt::format("{}: keyframe seq {} does not follow seq {}: air_agent restarted? its "
+                     "keyframes are stored from seq {} on",
                      agent->name, raw_seq, previous_seq, d.keyframe.seq));
   }
   if (!known_camera) {
