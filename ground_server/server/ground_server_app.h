@@ -136,15 +136,15 @@ struct GroundServerOptions {
 /// Counters, for the status line and tests. Every message the daemon drops
 /// lands in exactly one of the *_dropped / bad / mismatch / rejected counters.
 struct GroundServerStats {
-  int64_t bad_messages = 0;            ///< undecodable or invalid (sizes, NaN, encoding, names)
-  int64_t frame_id_mismatches = 0;     ///< UGV messages naming another frame (dropped)
-  int64_t odometry = 0;                ///< odometry poses buffered
-  int64_t odometry_rejected = 0;       ///< out of order or duplicate (not a confirmed clock jump)
-  int64_t clock_jumps = 0;             ///< UGV clock went back: state reset
-  int64_t scans = 0;                   ///< scans received (valid)
-  int64_t scans_dropped = 0;           ///< waiting queue full, or older than the odometry
-  int64_t images = 0;                  ///< UGV images received (valid)
-  int64_t keyframes = 0;               ///< UGV keyframes made
+  int64_t bad_messages = 0;         ///< undecodable or invalid (sizes, NaN, encoding, names)
+  int64_t frame_id_mismatches = 0;  ///< UGV messages naming another frame (dropped)
+  int64_t odometry = 0;             ///< odometry poses buffered
+  int64_t odometry_rejected = 0;    ///< out of order or duplicate (not a confirmed clock jump)
+  int64_t clock_jumps = 0;          ///< UGV clock went back: state reset
+  int64_t scans = 0;                ///< scans received (valid)
+  int64_t scans_dropped = 0;        ///< waiting queue full, or older than the odometry
+  int64_t images = 0;     ///< UGV images received (header checks passed; decoding may still fail)
+  int64_t keyframes = 0;  ///< UGV keyframes made
   int64_t keyframes_dropped = 0;       ///< waiting or frontend queue full, or no odometry for them
   int64_t air_packets = 0;             ///< UAV keyframe packets received (before decoding)
   int64_t air_packets_dropped = 0;     ///< decode queue full (oldest dropped)
