@@ -14,7 +14,7 @@ PACKAGES=(
   libspdlog-dev libyaml-cpp-dev libcli11-dev libhnswlib-dev libfaiss-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-onnx
-  iproute2 clang-format clang-tidy
+  iproute2 iptables clang-format clang-tidy
 )
 
 install_packages() {

@@ -1,6 +1,8 @@
 // lcm_capture: test helper that records raw LCM messages of channels matching
-// a pattern into numbered files (<out>/<channel>.<n>.bin), and exits after
-// --count messages or --timeout seconds. Used inside private network
+// a pattern into numbered files (<out>/<channel>.<n>.bin), one line per
+// message in <out>/index.csv (receive time in microseconds as LCM stamps it,
+// channel, number, bytes), and exits after --count messages or --timeout
+// seconds. Used inside private network
 // namespaces only (tests never send LCM traffic outside the machine).
 #include <CLI/CLI.hpp>
 #include <chrono>
@@ -27,17 +29,22 @@ int main(int argc, char** argv) {
   }
   int received = 0;
   std::map<std::string, int> per_channel;
+  std::ofstream index(out_dir + "/index.csv");
+  index << "recv_utime,channel,n,bytes\n" << std::flush;
   struct Handler {
     std::string dir;
     int* received;
     std::map<std::string, int>* per_channel;
+    std::ofstream* index;
     void On(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
       const int n = (*per_channel)[channel]++;
       std::ofstream(dir + "/" + channel + "." + std::to_string(n) + ".bin", std::ios::binary)
           .write(static_cast<const char*>(rbuf->data), rbuf->data_size);
+      *index << rbuf->recv_utime << "," << channel << "," << n << "," << rbuf->data_size << "\n"
+             << std::flush;
       ++*received;
     }
-  } handler{out_dir, &received, &per_channel};
+  } handler{out_dir, &received, &per_channel, &index};
   lcm.subscribe(pattern, &Handler::On, &handler);
   // Tell the parent we are subscribed (it starts the sender after this).
   std::ofstream(out_dir + "/READY") << "ok\n";
