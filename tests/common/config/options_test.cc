@@ -94,6 +94,21 @@ TEST(OptionsTest, WrongTypesAndInvalidValuesNameTheField) {
       << e.what();
 }
 
+TEST(OptionsTest, ReadOptionsRejectsUnknownKeysButLeavesValidationToTheCaller) {
+  // An invalid value is read as is (flags may still fix it before Check)...
+  const OuterOptions read = ReadOptions<OuterOptions>(YAML::Load("top_k: 0\n"), "fixture.yaml");
+  EXPECT_EQ(read.top_k, 0);
+  EXPECT_THROW(CheckOptions(read), OptionError);
+  // ... but an unknown key is still an error naming it.
+  try {
+    ReadOptions<OuterOptions>(YAML::Load("top_k: 5\ntopk: 6\n"), "fixture.yaml");
+    ADD_FAILURE() << "unknown key accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.kind(), InputErrorKind::kUnknownKey);
+    EXPECT_NE(std::string(e.what()).find("'topk'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(OptionsTest, EffectiveConfigRoundTrips) {
   OuterOptions o;
   o.top_k = 77;
