@@ -12,7 +12,8 @@
 //    0.5 Mbit/s budget) and the UGV (player --no-air, ground_server) in two
 //    namespaces joined by a veth pair; the air-to-ground direction is shaped
 //    by tc tbf to 0.5 Mbit/s and loses 10% of its IP packets (iptables
-//    statistic: this kernel has no netem). The governor must keep every
+//    statistic: this kernel has no netem; $AG_TEST_LINK_LOSS sets another
+//    fraction, e.g. 0 to see the shaping alone). The governor must keep every
 //    1 s window of what air_agent sent under the budget; packets must cross;
 //    no daemon may crash.
 //  RestartKeepsUavKeyframes: ground_server is killed (SIGKILL) after 6 s of
@@ -307,7 +308,7 @@ $GNS sh -c 'ip link set lo up && ip addr add 10.77.0.2/24 dev vg && ip link set 
 # ground's own multicast, looped back on vg, is not the link's).
 tc qdisc add dev va root tbf rate 0.5mbit burst 16kb limit 256kb || { echo setup_failed=tc_tbf; kill $H; exit 77; }
 IPT=$(command -v iptables-legacy || command -v iptables || echo iptables_missing)
-$GNS $IPT -t raw -A PREROUTING -i vg -s 10.77.0.1 -m statistic --mode random --probability 0.1 -j DROP || { echo setup_failed=iptables_statistic; kill $H; exit 77; }
+$GNS $IPT -t raw -A PREROUTING -i vg -s 10.77.0.1 -m statistic --mode random --probability ${AG_TEST_LINK_LOSS:-0.1} -j DROP || { echo setup_failed=iptables_statistic; kill $H; exit 77; }
 $CAP --pattern 'AG_AIR_(KEYFRAME|CAMERA_INFO)_uav1' --count 100000 --timeout 120 --out cap_air --lcm-url "$CAPURL" > cap_air.log 2>&1 &
 CA=$!
 $GNS $CAP --pattern 'AG_(RELATIVE_POSE|AIR_KEYFRAME|AIR_CAMERA_INFO)_uav1' --count 100000 --timeout 120 --out cap_ground --lcm-url "$CAPURL" > cap_ground.log 2>&1 &
@@ -406,6 +407,16 @@ exit 0
   const std::vector<ReceivedPose> poses = RelativePoses(ground_capture, "uav1");
   const Pose truth = ReadGroundTruth(dataset + "/groundtruth.yaml").T_wa_wg.at("uav1");
   const FixSummary fixes = Fixes(poses, truth);
+  // Time on the link (queue of the shaper included), per keyframe that crossed.
+  const std::vector<ReceivedKeyframe> sent = Keyframes(test::ReadCapture(tmp / "cap_air"), "uav1");
+  for (const ReceivedKeyframe& k : Keyframes(ground_capture, "uav1")) {
+    for (const ReceivedKeyframe& s : sent) {
+      if (s.seq == k.seq) {
+        std::printf("  keyframe %lld: %.2f s on the link\n", static_cast<long long>(k.seq),
+                    static_cast<double>(k.recv_utime - s.recv_utime) * 1e-6);
+      }
+    }
+  }
   const std::string ugv = test::LastLineWith(ground_log, "] ugv: odometry");
   const std::string agent_line = test::LastLineWith(ground_log, "] uav1: ");
   std::smatch tc_sent;
