@@ -145,6 +145,10 @@ FixSummary Fixes(const std::vector<ReceivedPose>& poses, const Pose& truth) {
     if (p.estimate.status != aglcm::relative_pose_t::TRACKING) continue;
     ++s.tracking;
     s.last_error = test::ErrorOf(p.estimate.T_wa_wg, truth);
+    std::printf("  tracking seq %lld: error %.3f m %.2f deg (sigma %.3f m)\n",
+                static_cast<long long>(p.estimate.seq), s.last_error->translation_m,
+                s.last_error->yaw_deg,
+                std::sqrt(p.estimate.covariance.topLeftCorner<3, 3>().trace()));
   }
   return s;
 }
