@@ -44,6 +44,8 @@ AirFrontend::AirFrontend(std::string agent, const Options& options,
     throw OptionError("agent", "'" + agent_ + "' is not a valid agent name ([a-z0-9_]+)");
   }
   Camera check(calibration.camera);  // throws naming the bad field
+  governor_.SetReserve(
+      LcmLinkBytes(AirCameraInfoChannel(agent_), CameraInfo(0).getEncodedSize(), options_.mtu).ip);
 }
 
 int64_t AirFrontend::BodyTimeNs(int64_t t_camera_ns) const {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "common/core/error.h"
 
@@ -14,6 +15,7 @@ void BandwidthGovernor::Options::Check() const {
   CheckOption(min_keypoints > 0 && min_keypoints <= max_keypoints, "min_keypoints",
               "must be in [1, max_keypoints]");
   CheckOption(!encodings.empty(), "encodings", "must name at least one encoding");
+  CheckOption(max_packet_bytes >= 0, "max_packet_bytes", "must be >= 0 (0 = no limit)");
   for (const std::string& name : encodings) {
     CheckOption(ParseArrayEncoding(name).has_value(), "encodings",
                 "has unknown encoding '" + name + "' (float32, float16, int8, bits4)");
@@ -64,16 +66,21 @@ BandwidthGovernor::Plan BandwidthGovernor::PlanKeyframe(int64_t t_ns, int availa
   Plan plan;
   const int k_max = std::min(options_.max_keypoints, std::max(available_keypoints, 0));
   const int k_min = std::min(options_.min_keypoints, k_max);
-  if (window_budget_bytes_ == 0) {
+  if (window_budget_bytes_ == 0 && options_.max_packet_bytes == 0) {
     plan.send = true;
     plan.keypoints = k_max;
     plan.encoding = encodings_.front();
     plan.bytes = packet_bytes_(plan.keypoints, plan.encoding);
     return plan;
   }
-  Refill(t_ns);
-  const int64_t allowance = std::min<int64_t>(static_cast<int64_t>(std::floor(tokens_)),
-                                              window_budget_bytes_ - BytesInWindow(t_ns));
+  int64_t allowance = std::numeric_limits<int64_t>::max();
+  if (window_budget_bytes_ > 0) {
+    Refill(t_ns);
+    allowance = std::min<int64_t>(static_cast<int64_t>(std::floor(tokens_)),
+                                  window_budget_bytes_ - BytesInWindow(t_ns)) -
+                reserve_bytes_;
+  }
+  if (options_.max_packet_bytes > 0) allowance = std::min(allowance, options_.max_packet_bytes);
   for (size_t e = 0; e < encodings_.size(); ++e) {
     const ArrayEncoding encoding = encodings_[e];
     if (packet_bytes_(k_min, encoding) > allowance) continue;

@@ -33,6 +33,11 @@ class BandwidthGovernor {
     /// Descriptor encodings tried in order, richest first.
     std::vector<std::string> encodings = {"int8", "bits4"};
     double window_s = 1.0;  ///< the interval over which the budget holds (s)
+    /// Largest keyframe packet on the link (IPv4 bytes; 0 = no limit). LCM
+    /// has no retransmission: a packet arrives only if all its ~1.5 kB IP
+    /// fragments do, so on a lossy radio (e.g. 10% loss: 0.9^43 = 1% of 60 kB
+    /// packets arrive, 0.9^8 = 43% of 12 kB ones) smaller packets carry more.
+    int64_t max_packet_bytes = 0;
 
     template <class V>
     void VisitFields(V& v) {
@@ -41,6 +46,7 @@ class BandwidthGovernor {
       v("min_keypoints", min_keypoints);
       v("encodings", encodings);
       v("window_s", window_s);
+      v("max_packet_bytes", max_packet_bytes);
     }
     void Check() const;
   };
@@ -68,6 +74,11 @@ class BandwidthGovernor {
   /// would break the window budget: the caller must then not send.
   bool TryConsume(int64_t t_ns, int64_t bytes);
 
+  /// Keyframe plans leave this many bytes of every window free, for small
+  /// messages the link must always carry (camera info: without it the
+  /// ground can use no keyframe at all).
+  void SetReserve(int64_t bytes) { reserve_bytes_ = bytes; }
+
   /// Bytes sent in the trailing window ending at t_ns.
   int64_t BytesInWindow(int64_t t_ns);
 
@@ -86,6 +97,7 @@ class BandwidthGovernor {
   int64_t window_ns_ = 0;
   int64_t window_budget_bytes_ = 0;
   double tokens_ = 0.0;
+  int64_t reserve_bytes_ = 0;
   int64_t last_refill_ns_ = 0;
   bool started_ = false;
   std::deque<std::pair<int64_t, int64_t>> sent_;  ///< (t_ns, bytes) in the window

@@ -164,6 +164,33 @@ TEST(BandwidthGovernorTest, OtherTrafficCountsAndIsRefusedWhenFull) {
   EXPECT_EQ(g.BytesInWindow(kSecond + 1), 9000);
 }
 
+TEST(BandwidthGovernorTest, KeyframesLeaveTheReserveForCameraInfo) {
+  // A budget keyframes alone would fill: at 0.5 Mbit/s, 1 Hz, every window
+  // still has room for a 400-byte camera info.
+  BandwidthGovernor::Options o;
+  o.budget_mbps = 0.5;
+  BandwidthGovernor g(o, ModelBytes);
+  g.SetReserve(400);
+  for (int s = 0; s < 10; ++s) {
+    const int64_t t = s * kSecond;
+    const auto plan = g.PlanKeyframe(t, 1500);
+    ASSERT_TRUE(plan.send);
+    EXPECT_LE(plan.bytes, g.window_budget_bytes() - 400);
+    ASSERT_TRUE(g.TryConsume(t, plan.bytes));
+    EXPECT_TRUE(g.TryConsume(t + kSecond / 2, 400)) << "no room for camera info at " << s << " s";
+  }
+  // Without the reserve the keyframes take it all.
+  BandwidthGovernor greedy(o, ModelBytes);
+  int refused = 0;
+  for (int s = 0; s < 10; ++s) {
+    const int64_t t = s * kSecond;
+    const auto plan = greedy.PlanKeyframe(t, 1500);
+    if (plan.send) greedy.TryConsume(t, plan.bytes);
+    refused += greedy.TryConsume(t + kSecond / 2, 400) ? 0 : 1;
+  }
+  EXPECT_GT(refused, 5);
+}
+
 TEST(BandwidthGovernorTest, OptionsAreChecked) {
   BandwidthGovernor::Options o;
   o.encodings = {"int7"};
