@@ -191,6 +191,22 @@ TEST(BandwidthGovernorTest, KeyframesLeaveTheReserveForCameraInfo) {
   EXPECT_GT(refused, 5);
 }
 
+TEST(BandwidthGovernorTest, PacketCapHoldsWithOrWithoutABudget) {
+  for (const double budget : {0.0, 2.0}) {
+    BandwidthGovernor::Options o;
+    o.budget_mbps = budget;
+    o.max_packet_bytes = 16000;
+    BandwidthGovernor g(o, ModelBytes);
+    std::vector<BandwidthGovernor::Plan> plans;
+    RunKeyframes(g, 1.0, 5, &plans);
+    for (const auto& plan : plans) {
+      ASSERT_TRUE(plan.send) << budget;
+      EXPECT_LE(plan.bytes, 16000) << budget;
+      EXPECT_GT(plan.bytes, 16000 - 100) << "the cap should be used, not undershot";
+    }
+  }
+}
+
 TEST(BandwidthGovernorTest, OptionsAreChecked) {
   BandwidthGovernor::Options o;
   o.encodings = {"int7"};
