@@ -757,35 +757,9 @@ Vector3f SurfaceTexture::Pattern(const LowFrequency& low, const float brightness
   return c;
 }
 
-uint32_t SurfaceTexture::DecalMask(const Vector2d& uv, double extent_m) const {
-  uint32_t mask = 0;
-  for (size_t layer_index = 0; layer_index < decals_.size(); ++layer_index) {
-    const DecalLayer& layer = decals_[layer_index];
-    const auto x0 = static_cast<int64_t>(std::floor((uv.x() - extent_m) / layer.cell_m));
-    const auto x1 = static_cast<int64_t>(std::floor((uv.x() + extent_m) / layer.cell_m));
-    const auto y0 = static_cast<int64_t>(std::floor((uv.y() - extent_m) / layer.cell_m));
-    const auto y1 = static_cast<int64_t>(std::floor((uv.y() + extent_m) / layer.cell_m));
-    if (x1 - x0 > 1 || y1 - y0 > 1) {
-      mask |= 1u << layer_index;
-      continue;
-    }
-    for (int64_t cy = y0; cy <= y1; ++cy) {
-      for (int64_t cx = x0; cx <= x1; ++cx) {
-        const uint32_t h =
-            DecalCellHash(static_cast<int32_t>(cx), static_cast<int32_t>(cy),
-                          seed_ + 0x632be5abu * static_cast<uint32_t>(layer_index + 1));
-        if (UnitFloat(h) < layer.probability) mask |= 1u << layer_index;
-      }
-    }
-  }
-  return mask;
-}
-
-Vector3f SurfaceTexture::ApplyDecals(const Vector2d& uv, float fw, Vector3f albedo,
-                                     uint32_t mask) const {
+Vector3f SurfaceTexture::ApplyDecals(const Vector2d& uv, float fw, Vector3f albedo) const {
   const float fwc = std::max(fw, 1e-4f);
   for (size_t layer_index = 0; layer_index < decals_.size(); ++layer_index) {
-    if (!(mask & (1u << layer_index))) continue;
     const DecalLayer& layer = decals_[layer_index];
     const double cu = std::floor(uv.x() / layer.cell_m);
     const double cv = std::floor(uv.y() / layer.cell_m);
@@ -916,8 +890,6 @@ Vector3f SurfaceTexture::Albedo(const Vector2d& uv, double footprint_m, const Ve
     low = Low(uv, fp.major_len);
     Detail(low, uv, fp, brightness);
   }
-  // Decal layers with a decal anywhere under the footprint (most cells have none).
-  const uint32_t mask = DecalMask(uv, 0.5 * fp.major_len + fw_tap);
   Vector3f sum = Vector3f::Zero();
   for (int k = 0; k < fp.taps; ++k) {
     const Vector2d p = fp.taps == 1 ? uv : Vector2d(uv + ((k + 0.5) / fp.taps - 0.5) * major_uv);
@@ -925,7 +897,10 @@ Vector3f SurfaceTexture::Albedo(const Vector2d& uv, double footprint_m, const Ve
         use_images ? Vector3f(modulation * images->Sample(static_cast<size_t>(image_pick_ >> 24),
                                                           p + image_offset, fw_tap))
                    : Pattern(low, brightness, p, fw_tap);
-    sum += mask ? ApplyDecals(p, fw_tap, c, mask) : c;
+    // Each tap looks up its own decal cells: cheaper than first finding the
+    // layers with a decal anywhere under the footprint, and the same result
+    // (a layer without a decal in a tap's cell leaves that tap unchanged).
+    sum += ApplyDecals(p, fw_tap, c);
   }
   return (sum / static_cast<float>(fp.taps)).cwiseMax(0.0f).cwiseMin(1.0f);
 }
