@@ -97,6 +97,9 @@ void SimWorld::BuildIndex() {
     max_z_ = std::max(max_z_, o.center.z() + o.half.z());
   }
   cell_m_ = std::max(2.0, std::max(x1 - x0, y1 - y0) / 2048.0);
+  inv_cell_m_ = 1.0 / cell_m_;
+  // A power of two (the usual 2 m) has an exact reciprocal.
+  cell_is_pow2_ = std::scalbn(1.0, std::ilogb(cell_m_)) == cell_m_;
   grid_x0_ = x0 - 0.5;
   grid_y0_ = y0 - 0.5;
   grid_nx_ = static_cast<int>(std::ceil((x1 + 0.5 - grid_x0_) / cell_m_));
@@ -302,13 +305,21 @@ bool SimWorld::Traverse(const Vector3d& o, const Vector3d& d, double t_min, doub
     t0 = std::max(t0, ta);
     t1 = std::min(t1, tb);
   };
+  // Each clip only narrows (t0, t1): stop as soon as it is empty.
   clip(o.z(), d.z(), -1e-9, max_z_ + 1e-9);
+  if (!(t0 < t1)) return false;
   clip(o.x(), d.x(), grid_x0_, grid_x0_ + grid_nx_ * cell_m_);
   clip(o.y(), d.y(), grid_y0_, grid_y0_ + grid_ny_ * cell_m_);
   if (!(t0 < t1)) return false;
   const Vector3d pe = o + t0 * d;
-  int ix = std::clamp(static_cast<int>(std::floor((pe.x() - grid_x0_) / cell_m_)), 0, grid_nx_ - 1);
-  int iy = std::clamp(static_cast<int>(std::floor((pe.y() - grid_y0_) / cell_m_)), 0, grid_ny_ - 1);
+  // The entry cell, clamped to the grid. Clamping before truncating gives
+  // the same cell as flooring first: below 0 both end at 0.
+  auto entry_cell = [this](double offset, int n) {
+    const double q = cell_is_pow2_ ? offset * inv_cell_m_ : offset / cell_m_;
+    return static_cast<int>(std::clamp(q, 0.0, n - 1.0));
+  };
+  int ix = entry_cell(pe.x() - grid_x0_, grid_nx_);
+  int iy = entry_cell(pe.y() - grid_y0_, grid_ny_);
   const int step_x = d.x() > 0 ? 1 : -1;
   const int step_y = d.y() > 0 ? 1 : -1;
   double t_next_x = kInf, t_next_y = kInf, dt_x = kInf, dt_y = kInf;
@@ -329,11 +340,14 @@ bool SimWorld::Traverse(const Vector3d& o, const Vector3d& d, double t_min, doub
   double t_cell = t0;  // where the ray enters the current cell
   while (true) {
     const size_t cell = static_cast<size_t>(iy) * grid_nx_ + ix;
-    // Skip the cell when the ray passes above everything in it.
-    const double t_cell_exit = std::min({t_next_x, t_next_y, t1});
-    const double z_low = std::min(o.z() + t_cell * d.z(), o.z() + t_cell_exit * d.z());
-    const uint32_t k_end = z_low > cell_top_[cell] ? cell_start_[cell] : cell_start_[cell + 1];
-    for (uint32_t k = cell_start_[cell]; k < k_end; ++k) {
+    const double t_exit = std::min(t_next_x, t_next_y);
+    const uint32_t k_begin = cell_start_[cell], k_end = cell_start_[cell + 1];
+    // Most cells are empty; of the others, skip those where the ray passes
+    // above everything in them.
+    const bool test_cell =
+        k_begin != k_end &&
+        !(std::min(o.z() + t_cell * d.z(), o.z() + std::min(t_exit, t1) * d.z()) > cell_top_[cell]);
+    for (uint32_t k = k_begin; test_cell && k < k_end; ++k) {
       // Mailbox: objects spanning several cells are tested once per ray.
       const uint32_t object = cell_items_[k];
       bool tested = false;
@@ -350,9 +364,7 @@ bool SimWorld::Traverse(const Vector3d& o, const Vector3d& d, double t_min, doub
         best_face = face;
       }
     }
-    const bool found = best_object >= 0;
-    const double t_exit = std::min(t_next_x, t_next_y);
-    if ((found && best <= t_exit) || t_exit >= t1) break;
+    if ((best_object >= 0 && best <= t_exit) || t_exit >= t1) break;
     t_cell = t_exit;
     if (t_next_x < t_next_y) {
       ix += step_x;

@@ -166,6 +166,8 @@ class SimWorld {
   Eigen::Vector3d sun_ = Eigen::Vector3d::UnitZ();
   // Uniform grid over the objects' xy bounds.
   double grid_x0_ = 0.0, grid_y0_ = 0.0, cell_m_ = 2.0;
+  double inv_cell_m_ = 0.5;   ///< 1 / cell_m_
+  bool cell_is_pow2_ = true;  ///< cell_m_ is a power of two: dividing = multiplying by inv_cell_m_
   int grid_nx_ = 0, grid_ny_ = 0;
   std::vector<uint32_t> cell_start_;  ///< CSR offsets, size nx*ny+1
   std::vector<uint32_t> cell_items_;
