@@ -122,15 +122,20 @@ float FilteredFbm(const Vector2d& uv, const Footprint& fp, float largest_m, int 
   float total = 0.0f;
   double s = largest_m;
   const float fw_tap = std::max(fp.minor, fp.major_len / static_cast<float>(fp.taps));
+  // Octave i's wavelength s is largest_m / 2^i exactly, and a quotient
+  // scaled by a power of two is the same quotient scaled, rounding included
+  // (these are far from overflow and subnormals), so wavelength / footprint
+  // and 2 |major| / wavelength need one division each, not one per octave.
+  float s_over_fw = largest_m / fw_tap;
+  double major_over_s = 2.0 * fp.major_len / static_cast<double>(largest_m);
   for (int i = 0; i < octaves; ++i) {
     total += amp * amp;
-    const float w = Clamp01(static_cast<float>(s) / fw_tap - 2.0f);
+    const float w = Clamp01(s_over_fw - 2.0f);
     if (w > 0.0f) {
       const auto& r = rot[i & 15];
-      const int taps =
-          fp.taps == 1
-              ? 1
-              : std::clamp(static_cast<int>(std::ceil(2.0 * fp.major_len / s)), 1, fp.taps);
+      // clamp(ceil(major_over_s), 1, fp.taps), counted without branches.
+      int taps = 1;
+      for (int k = 1; k < fp.taps; ++k) taps += major_over_s > k ? 1 : 0;
       float value = 0.0f;
       for (int k = 0; k < taps; ++k) {
         const double f = taps == 1 ? 0.0 : (k + 0.5) / taps - 0.5;
@@ -144,6 +149,8 @@ float FilteredFbm(const Vector2d& uv, const Footprint& fp, float largest_m, int 
     }
     amp *= gain;
     s *= 0.5;
+    s_over_fw *= 0.5f;
+    major_over_s *= 2.0;
   }
   return sum * kNoiseStdInv / std::sqrt(total);
 }
