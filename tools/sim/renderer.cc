@@ -228,7 +228,11 @@ CameraRenderer::Frame CameraRenderer::Render(const SimWorld& world, const Pose& 
       double dn = 255.0 * std::clamp(static_cast<double>(in[k]), 0.0, 1.0);
       dn += std::sqrt(options_.shot_noise_dn * dn + read2) * rng.Gaussian();
       const double x = std::clamp(dn / 255.0, 0.0, 1.0);
-      out[k] = gamma_lut_[static_cast<size_t>(std::lround(x * (kGammaLutSize - 1)))];
+      // std::lround (halves away from zero) of a value >= 0, inline: this
+      // runs for every pixel and channel.
+      const double lut_x = x * (kGammaLutSize - 1);
+      const double whole = std::trunc(lut_x);
+      out[k] = gamma_lut_[static_cast<size_t>(whole) + (lut_x - whole >= 0.5 ? 1 : 0)];
     }
   }
   return frame;

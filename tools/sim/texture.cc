@@ -122,15 +122,20 @@ float FilteredFbm(const Vector2d& uv, const Footprint& fp, float largest_m, int 
   float total = 0.0f;
   double s = largest_m;
   const float fw_tap = std::max(fp.minor, fp.major_len / static_cast<float>(fp.taps));
+  // Octave i's wavelength s is largest_m / 2^i exactly, and a quotient
+  // scaled by a power of two is the same quotient scaled, rounding included
+  // (these are far from overflow and subnormals), so wavelength / footprint
+  // and 2 |major| / wavelength need one division each, not one per octave.
+  float s_over_fw = largest_m / fw_tap;
+  double major_over_s = 2.0 * fp.major_len / static_cast<double>(largest_m);
   for (int i = 0; i < octaves; ++i) {
     total += amp * amp;
-    const float w = Clamp01(static_cast<float>(s) / fw_tap - 2.0f);
+    const float w = Clamp01(s_over_fw - 2.0f);
     if (w > 0.0f) {
       const auto& r = rot[i & 15];
-      const int taps =
-          fp.taps == 1
-              ? 1
-              : std::clamp(static_cast<int>(std::ceil(2.0 * fp.major_len / s)), 1, fp.taps);
+      // clamp(ceil(major_over_s), 1, fp.taps), counted without branches.
+      int taps = 1;
+      for (int k = 1; k < fp.taps; ++k) taps += major_over_s > k ? 1 : 0;
       float value = 0.0f;
       for (int k = 0; k < taps; ++k) {
         const double f = taps == 1 ? 0.0 : (k + 0.5) / taps - 0.5;
@@ -144,6 +149,8 @@ float FilteredFbm(const Vector2d& uv, const Footprint& fp, float largest_m, int 
     }
     amp *= gain;
     s *= 0.5;
+    s_over_fw *= 0.5f;
+    major_over_s *= 2.0;
   }
   return sum * kNoiseStdInv / std::sqrt(total);
 }
@@ -757,35 +764,9 @@ Vector3f SurfaceTexture::Pattern(const LowFrequency& low, const float brightness
   return c;
 }
 
-uint32_t SurfaceTexture::DecalMask(const Vector2d& uv, double extent_m) const {
-  uint32_t mask = 0;
-  for (size_t layer_index = 0; layer_index < decals_.size(); ++layer_index) {
-    const DecalLayer& layer = decals_[layer_index];
-    const auto x0 = static_cast<int64_t>(std::floor((uv.x() - extent_m) / layer.cell_m));
-    const auto x1 = static_cast<int64_t>(std::floor((uv.x() + extent_m) / layer.cell_m));
-    const auto y0 = static_cast<int64_t>(std::floor((uv.y() - extent_m) / layer.cell_m));
-    const auto y1 = static_cast<int64_t>(std::floor((uv.y() + extent_m) / layer.cell_m));
-    if (x1 - x0 > 1 || y1 - y0 > 1) {
-      mask |= 1u << layer_index;
-      continue;
-    }
-    for (int64_t cy = y0; cy <= y1; ++cy) {
-      for (int64_t cx = x0; cx <= x1; ++cx) {
-        const uint32_t h =
-            DecalCellHash(static_cast<int32_t>(cx), static_cast<int32_t>(cy),
-                          seed_ + 0x632be5abu * static_cast<uint32_t>(layer_index + 1));
-        if (UnitFloat(h) < layer.probability) mask |= 1u << layer_index;
-      }
-    }
-  }
-  return mask;
-}
-
-Vector3f SurfaceTexture::ApplyDecals(const Vector2d& uv, float fw, Vector3f albedo,
-                                     uint32_t mask) const {
+Vector3f SurfaceTexture::ApplyDecals(const Vector2d& uv, float fw, Vector3f albedo) const {
   const float fwc = std::max(fw, 1e-4f);
   for (size_t layer_index = 0; layer_index < decals_.size(); ++layer_index) {
-    if (!(mask & (1u << layer_index))) continue;
     const DecalLayer& layer = decals_[layer_index];
     const double cu = std::floor(uv.x() / layer.cell_m);
     const double cv = std::floor(uv.y() / layer.cell_m);
@@ -916,8 +897,6 @@ Vector3f SurfaceTexture::Albedo(const Vector2d& uv, double footprint_m, const Ve
     low = Low(uv, fp.major_len);
     Detail(low, uv, fp, brightness);
   }
-  // Decal layers with a decal anywhere under the footprint (most cells have none).
-  const uint32_t mask = DecalMask(uv, 0.5 * fp.major_len + fw_tap);
   Vector3f sum = Vector3f::Zero();
   for (int k = 0; k < fp.taps; ++k) {
     const Vector2d p = fp.taps == 1 ? uv : Vector2d(uv + ((k + 0.5) / fp.taps - 0.5) * major_uv);
@@ -925,7 +904,10 @@ Vector3f SurfaceTexture::Albedo(const Vector2d& uv, double footprint_m, const Ve
         use_images ? Vector3f(modulation * images->Sample(static_cast<size_t>(image_pick_ >> 24),
                                                           p + image_offset, fw_tap))
                    : Pattern(low, brightness, p, fw_tap);
-    sum += mask ? ApplyDecals(p, fw_tap, c, mask) : c;
+    // Each tap looks up its own decal cells: cheaper than first finding the
+    // layers with a decal anywhere under the footprint, and the same result
+    // (a layer without a decal in a tap's cell leaves that tap unchanged).
+    sum += ApplyDecals(p, fw_tap, c);
   }
   return (sum / static_cast<float>(fp.taps)).cwiseMax(0.0f).cwiseMin(1.0f);
 }

@@ -133,10 +133,9 @@ class SurfaceTexture {
   /// Patterns, windows and grains at one tap of the footprint.
   Eigen::Vector3f Pattern(const LowFrequency& low, const float brightness[2],
                           const Eigen::Vector2d& uv, float fw) const;
-  /// Bit i set when decal layer i may cover a point within extent_m of uv.
-  uint32_t DecalMask(const Eigen::Vector2d& uv, double extent_m) const;
-  Eigen::Vector3f ApplyDecals(const Eigen::Vector2d& uv, float fw, Eigen::Vector3f albedo,
-                              uint32_t mask) const;
+  /// The decals covering uv (each layer has at most one per grid cell, so
+  /// only the cell holding uv is looked at).
+  Eigen::Vector3f ApplyDecals(const Eigen::Vector2d& uv, float fw, Eigen::Vector3f albedo) const;
 
   MaterialKind kind_ = MaterialKind::kConcrete;
   uint32_t seed_ = 0;

@@ -76,6 +76,7 @@ void SimWorld::BuildIndex() {
   cell_start_.clear();
   cell_items_.clear();
   grid_nx_ = grid_ny_ = 0;
+  sun_nx_ = sun_ny_ = 0;
   max_z_ = 0.0;
   if (objects_.empty()) return;
   std::vector<Eigen::Vector4d> boxes;  // xmin ymin xmax ymax
@@ -97,6 +98,9 @@ void SimWorld::BuildIndex() {
     max_z_ = std::max(max_z_, o.center.z() + o.half.z());
   }
   cell_m_ = std::max(2.0, std::max(x1 - x0, y1 - y0) / 2048.0);
+  inv_cell_m_ = 1.0 / cell_m_;
+  // A power of two (the usual 2 m) has an exact reciprocal.
+  cell_is_pow2_ = std::scalbn(1.0, std::ilogb(cell_m_)) == cell_m_;
   grid_x0_ = x0 - 0.5;
   grid_y0_ = y0 - 0.5;
   grid_nx_ = static_cast<int>(std::ceil((x1 + 0.5 - grid_x0_) / cell_m_));
@@ -118,6 +122,7 @@ void SimWorld::BuildIndex() {
   cell_start_ = counts;
   cell_items_.resize(counts.back());
   std::vector<uint32_t> fill(counts.begin(), counts.end() - 1);
+  BuildSunIndex(boxes);
   cell_top_.assign(static_cast<size_t>(grid_nx_) * grid_ny_, -kInf);
   for (size_t k = 0; k < boxes.size(); ++k) {
     int ix0, iy0, ix1, iy1;
@@ -131,6 +136,56 @@ void SimWorld::BuildIndex() {
       }
     }
   }
+}
+
+void SimWorld::BuildSunIndex(const std::vector<Eigen::Vector4d>& boxes) {
+  // A sun ray from a point at height >= 0 meets an object only if the point
+  // lies under the object's bounding box swept away from the sun down to
+  // the ground: the box's footprint stretched by top / tan(elevation)
+  // against the sun's azimuth. Cells outside every such region see the sun.
+  std::vector<Eigen::Vector4d> regions;  // xmin ymin xmax ymax
+  double x0 = kInf, y0 = kInf, x1 = -kInf, y1 = -kInf;
+  for (size_t k = 0; k < boxes.size(); ++k) {
+    const double top = objects_[k].center.z() + objects_[k].half.z();
+    const double reach = std::max(top, 0.0) / sun_.z();
+    const double ex = -sun_.x() * reach, ey = -sun_.y() * reach;
+    // The margin dwarfs any rounding in the ray-object tests.
+    constexpr double kMargin = 0.05;
+    const Eigen::Vector4d r(
+        boxes[k][0] + std::min(ex, 0.0) - kMargin, boxes[k][1] + std::min(ey, 0.0) - kMargin,
+        boxes[k][2] + std::max(ex, 0.0) + kMargin, boxes[k][3] + std::max(ey, 0.0) + kMargin);
+    regions.push_back(r);
+    x0 = std::min(x0, r[0]);
+    y0 = std::min(y0, r[1]);
+    x1 = std::max(x1, r[2]);
+    y1 = std::max(y1, r[3]);
+  }
+  sun_cell_m_ = std::max(0.5, std::max(x1 - x0, y1 - y0) / 2048.0);
+  sun_x0_ = x0;
+  sun_y0_ = y0;
+  sun_nx_ = static_cast<int>(std::ceil((x1 - x0) / sun_cell_m_)) + 1;
+  sun_ny_ = static_cast<int>(std::ceil((y1 - y0) / sun_cell_m_)) + 1;
+  sun_blockable_.assign(static_cast<size_t>(sun_nx_) * sun_ny_, 0);
+  for (const Eigen::Vector4d& r : regions) {
+    const int ix0 = static_cast<int>(std::floor((r[0] - sun_x0_) / sun_cell_m_));
+    const int iy0 = static_cast<int>(std::floor((r[1] - sun_y0_) / sun_cell_m_));
+    const int ix1 =
+        std::min(static_cast<int>(std::floor((r[2] - sun_x0_) / sun_cell_m_)), sun_nx_ - 1);
+    const int iy1 =
+        std::min(static_cast<int>(std::floor((r[3] - sun_y0_) / sun_cell_m_)), sun_ny_ - 1);
+    for (int iy = std::max(iy0, 0); iy <= iy1; ++iy) {
+      for (int ix = std::max(ix0, 0); ix <= ix1; ++ix)
+        sun_blockable_[static_cast<size_t>(iy) * sun_nx_ + ix] = 1;
+    }
+  }
+}
+
+bool SimWorld::SunSurelyVisible(const Vector3d& p) const {
+  if (sun_nx_ == 0 || !(p.z() >= 0.0)) return false;
+  const double fx = std::floor((p.x() - sun_x0_) / sun_cell_m_);
+  const double fy = std::floor((p.y() - sun_y0_) / sun_cell_m_);
+  if (fx < 0.0 || fy < 0.0 || fx >= sun_nx_ || fy >= sun_ny_) return true;  // outside every region
+  return !sun_blockable_[static_cast<size_t>(fy) * sun_nx_ + static_cast<size_t>(fx)];
 }
 
 double SimWorld::IntersectObject(int index, const Vector3d& o, const Vector3d& d, double t_min,
@@ -302,13 +357,21 @@ bool SimWorld::Traverse(const Vector3d& o, const Vector3d& d, double t_min, doub
     t0 = std::max(t0, ta);
     t1 = std::min(t1, tb);
   };
+  // Each clip only narrows (t0, t1): stop as soon as it is empty.
   clip(o.z(), d.z(), -1e-9, max_z_ + 1e-9);
+  if (!(t0 < t1)) return false;
   clip(o.x(), d.x(), grid_x0_, grid_x0_ + grid_nx_ * cell_m_);
   clip(o.y(), d.y(), grid_y0_, grid_y0_ + grid_ny_ * cell_m_);
   if (!(t0 < t1)) return false;
   const Vector3d pe = o + t0 * d;
-  int ix = std::clamp(static_cast<int>(std::floor((pe.x() - grid_x0_) / cell_m_)), 0, grid_nx_ - 1);
-  int iy = std::clamp(static_cast<int>(std::floor((pe.y() - grid_y0_) / cell_m_)), 0, grid_ny_ - 1);
+  // The entry cell, clamped to the grid. Clamping before truncating gives
+  // the same cell as flooring first: below 0 both end at 0.
+  auto entry_cell = [this](double offset, int n) {
+    const double q = cell_is_pow2_ ? offset * inv_cell_m_ : offset / cell_m_;
+    return static_cast<int>(std::clamp(q, 0.0, n - 1.0));
+  };
+  int ix = entry_cell(pe.x() - grid_x0_, grid_nx_);
+  int iy = entry_cell(pe.y() - grid_y0_, grid_ny_);
   const int step_x = d.x() > 0 ? 1 : -1;
   const int step_y = d.y() > 0 ? 1 : -1;
   double t_next_x = kInf, t_next_y = kInf, dt_x = kInf, dt_y = kInf;
@@ -329,11 +392,14 @@ bool SimWorld::Traverse(const Vector3d& o, const Vector3d& d, double t_min, doub
   double t_cell = t0;  // where the ray enters the current cell
   while (true) {
     const size_t cell = static_cast<size_t>(iy) * grid_nx_ + ix;
-    // Skip the cell when the ray passes above everything in it.
-    const double t_cell_exit = std::min({t_next_x, t_next_y, t1});
-    const double z_low = std::min(o.z() + t_cell * d.z(), o.z() + t_cell_exit * d.z());
-    const uint32_t k_end = z_low > cell_top_[cell] ? cell_start_[cell] : cell_start_[cell + 1];
-    for (uint32_t k = cell_start_[cell]; k < k_end; ++k) {
+    const double t_exit = std::min(t_next_x, t_next_y);
+    const uint32_t k_begin = cell_start_[cell], k_end = cell_start_[cell + 1];
+    // Most cells are empty; of the others, skip those where the ray passes
+    // above everything in them.
+    const bool test_cell =
+        k_begin != k_end &&
+        !(std::min(o.z() + t_cell * d.z(), o.z() + std::min(t_exit, t1) * d.z()) > cell_top_[cell]);
+    for (uint32_t k = k_begin; test_cell && k < k_end; ++k) {
       // Mailbox: objects spanning several cells are tested once per ray.
       const uint32_t object = cell_items_[k];
       bool tested = false;
@@ -350,9 +416,7 @@ bool SimWorld::Traverse(const Vector3d& o, const Vector3d& d, double t_min, doub
         best_face = face;
       }
     }
-    const bool found = best_object >= 0;
-    const double t_exit = std::min(t_next_x, t_next_y);
-    if ((found && best <= t_exit) || t_exit >= t1) break;
+    if ((best_object >= 0 && best <= t_exit) || t_exit >= t1) break;
     t_cell = t_exit;
     if (t_next_x < t_next_y) {
       ix += step_x;
@@ -415,7 +479,8 @@ float SimWorld::Irradiance(const RayHit& hit, bool* in_shadow) const {
   const double cos_sun = hit.n.dot(sun_);
   bool shadow = cos_sun <= 0.0;
   if (!shadow && options_.shadows) {
-    shadow = Occluded(hit.p + 1e-6 * hit.n, sun_, 1e4, 1e-6);
+    const Vector3d origin = hit.p + 1e-6 * hit.n;
+    shadow = !SunSurelyVisible(origin) && Occluded(origin, sun_, 1e4, 1e-6);
   }
   if (in_shadow) *in_shadow = shadow;
   // Sky light from the upper hemisphere, a little ground bounce from below.

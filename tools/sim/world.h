@@ -154,6 +154,11 @@ class SimWorld {
                          double t_min, double t_max, int* face) const;
   void FillHit(int index, int face, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t,
                RayHit* hit) const;
+  /// Fills the sun index from the objects' xy bounding boxes.
+  void BuildSunIndex(const std::vector<Eigen::Vector4d>& boxes);
+  /// True when no object can block the sun from p (p.z >= 0), so the
+  /// shadow ray need not be cast; false when unsure.
+  bool SunSurelyVisible(const Eigen::Vector3d& p) const;
   template <bool kAnyHit>
   bool Traverse(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, double t_max,
                 RayHit* hit) const;
@@ -166,11 +171,17 @@ class SimWorld {
   Eigen::Vector3d sun_ = Eigen::Vector3d::UnitZ();
   // Uniform grid over the objects' xy bounds.
   double grid_x0_ = 0.0, grid_y0_ = 0.0, cell_m_ = 2.0;
+  double inv_cell_m_ = 0.5;   ///< 1 / cell_m_
+  bool cell_is_pow2_ = true;  ///< cell_m_ is a power of two: dividing = multiplying by inv_cell_m_
   int grid_nx_ = 0, grid_ny_ = 0;
   std::vector<uint32_t> cell_start_;  ///< CSR offsets, size nx*ny+1
   std::vector<uint32_t> cell_items_;
   std::vector<double> cell_top_;  ///< highest object top per cell (m)
   double max_z_ = 0.0;            ///< top of the tallest object (m)
+  // Sun index: a grid over xy marking where some object may shadow a point.
+  double sun_x0_ = 0.0, sun_y0_ = 0.0, sun_cell_m_ = 0.5;
+  int sun_nx_ = 0, sun_ny_ = 0;
+  std::vector<uint8_t> sun_blockable_;
 };
 
 }  // namespace ag

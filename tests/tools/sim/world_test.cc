@@ -109,6 +109,32 @@ TEST(SimWorld, GridTraversalAgreesWithBruteForce) {
   EXPECT_GT(hits, 1000);
 }
 
+// Irradiance skips the shadow ray where no object can block the sun; that
+// shortcut must never change a shadow.
+TEST(SimWorld, SunShortcutAgreesWithShadowRays) {
+  WorldOptions options;
+  options.size_x_m = 40;
+  options.size_y_m = 40;
+  const SimWorld world = SimWorld::Generate(options, 11, {});
+  SimRandom rng(6);
+  int lit = 0, shadowed = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const Vector3d o(rng.Uniform(-40, 40), rng.Uniform(-40, 40), rng.Uniform(0.3, 20.0));
+    Vector3d d(rng.Gaussian(), rng.Gaussian(), rng.Gaussian() - 0.5);
+    d.normalize();
+    RayHit hit;
+    if (!world.Cast(o, d, 500.0, &hit)) continue;
+    bool shadow = false;
+    world.Irradiance(hit, &shadow);
+    const bool expected = hit.n.dot(world.sun_direction()) <= 0.0 ||
+                          world.Occluded(hit.p + 1e-6 * hit.n, world.sun_direction(), 1e4, 1e-6);
+    ASSERT_EQ(shadow, expected) << "ray " << i;
+    ++(shadow ? shadowed : lit);
+  }
+  EXPECT_GT(lit, 2000);
+  EXPECT_GT(shadowed, 2000);
+}
+
 TEST(SimWorld, GenerationKeepsPathsClearAndIsDeterministic) {
   WorldOptions options;
   KeepOutPath path;
