@@ -13,8 +13,8 @@
 //    namespaces joined by a veth pair; the air-to-ground direction is shaped
 //    by tc tbf to 0.5 Mbit/s and loses 10% of its IP packets (iptables
 //    statistic: this kernel has no netem; $AG_TEST_LINK_LOSS sets another
-//    fraction, e.g. 0 to see the shaping alone). air_agent caps keyframe
-//    packets at 16 kB for the lossy link. The governor must keep every 1 s
+//    fraction, e.g. 0 to see the shaping alone). air_agent sends 12 kB
+//    keyframe packets at 2 Hz for the lossy link. The governor must keep every 1 s
 //    window of what air_agent sent under the budget; packets must cross,
 //    fixes must arrive, no daemon may crash.
 //  RestartKeepsUavKeyframes: ground_server is killed (SIGKILL) after 6 s of
@@ -289,7 +289,9 @@ TEST(GroundServerDaemon, TwoHostsThrottledLossyLink) {
   const std::string dataset = test::CachedSmallDataset(kDurationS, kSeed);
   test::TempDir tmp;
   constexpr double kBudgetMbps = 0.5;
-  WriteConfigs(tmp, "", "frontend: {governor: {budget_mbps: 0.5, max_packet_bytes: 16000}}\n");
+  WriteConfigs(tmp, "",
+               "frontend: {keyframes: {period_s: 0.5}, governor: {budget_mbps: 0.5, "
+               "max_packet_bytes: 12000, min_keypoints: 128}}\n");
   fs::create_directories(tmp / "cap_air");
   fs::create_directories(tmp / "cap_ground");
   // The UAV namespace is the test's private one; the UGV's is a child made
@@ -452,7 +454,8 @@ exit 0
   // Packets cross the link and the server keeps working on them, and fixes
   // arrive. A camera_info is one IP packet (90% cross); a keyframe of ~60 kB
   // would be ~43 (0.9^43: 1% cross whole, as LCM has no retransmission or
-  // FEC), so air_agent caps packets at 16 kB (11 fragments: 31% cross).
+  // FEC), so air_agent sends 12 kB packets (9 fragments: 39% cross) at 2 Hz
+  // (fewer than two of 20 crossing: p < 0.002).
   EXPECT_GT(arrived_infos, 0) << "no camera_info crossed the link\n" << all;
   EXPECT_NE(agent_line.find("uav1: "), std::string::npos) << "the server never saw uav1\n" << all;
   EXPECT_FALSE(poses.empty()) << "ground_server published no relative pose\n" << all;
