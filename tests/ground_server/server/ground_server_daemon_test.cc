@@ -6,7 +6,8 @@
 //    private namespace. Every scan and image must arrive (the daemons' 8 MB
 //    receive buffer), no message may be refused, relative poses must come
 //    out on AG_RELATIVE_POSE_uav1, decode, count up, and reach TRACKING with
-//    T_wa_wg within 0.3 m / 1.5 deg of groundtruth.yaml; both daemons end
+//    T_wa_wg within 0.5 m / 1.5 deg (median 0.35 m / 0.6 deg) of
+//    groundtruth.yaml and within 3 sigma of its covariance; both daemons end
 //    with status 0 on SIGTERM.
 //  TwoHostsThrottledLink: the UAV (player --no-ground, air_agent with a
 //    0.5 Mbit/s budget) and the UGV (player --no-air, ground_server) in two
@@ -35,6 +36,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <regex>
 #include <sstream>
 
@@ -139,6 +141,17 @@ std::string Paths(const std::string& dataset) {
 struct FixSummary {
   int tracking = 0;
   std::optional<test::PoseError> last_error;
+  std::vector<double> translation_m;  ///< of every TRACKING estimate
+  std::vector<double> yaw_deg;
+  std::vector<double> sigma_m;  ///< sqrt of the trace of the position covariance
+
+  double Median(std::vector<double> v) const {
+    std::sort(v.begin(), v.end());
+    return v.empty() ? NAN : v[v.size() / 2];
+  }
+  double MaxOf(const std::vector<double>& v) const {
+    return v.empty() ? NAN : *std::max_element(v.begin(), v.end());
+  }
 };
 FixSummary Fixes(const std::vector<ReceivedPose>& poses, const Pose& truth) {
   FixSummary s;
@@ -146,10 +159,12 @@ FixSummary Fixes(const std::vector<ReceivedPose>& poses, const Pose& truth) {
     if (p.estimate.status != aglcm::relative_pose_t::TRACKING) continue;
     ++s.tracking;
     s.last_error = test::ErrorOf(p.estimate.T_wa_wg, truth);
+    s.translation_m.push_back(s.last_error->translation_m);
+    s.yaw_deg.push_back(s.last_error->yaw_deg);
+    s.sigma_m.push_back(std::sqrt(p.estimate.covariance.topLeftCorner<3, 3>().trace()));
     std::printf("  tracking seq %lld: error %.3f m %.2f deg (sigma %.3f m)\n",
                 static_cast<long long>(p.estimate.seq), s.last_error->translation_m,
-                s.last_error->yaw_deg,
-                std::sqrt(p.estimate.covariance.topLeftCorner<3, 3>().trace()));
+                s.last_error->yaw_deg, s.sigma_m.back());
   }
   return s;
 }
@@ -262,8 +277,20 @@ exit 0
                                << " messages; last reason: '" << poses.back().estimate.status_reason
                                << "'\n"
                                << agent_line;
-  EXPECT_LT(fixes.last_error->translation_m, 0.3);
-  EXPECT_LT(fixes.last_error->yaw_deg, 1.5);
+  // Every fix within the worst case of the estimator's end-to-end test
+  // (tests/tools/evaluation/evaluate_sim_test.cc: 0.5 m, and 1.5 deg here)
+  // and within 3 sigma of its own covariance. The median is looser than the
+  // offline evaluator's (0.17 m on this dataset): live, a UGV window is
+  // estimated before the UAV keyframe of the same instant has arrived, so it
+  // pairs with the one of ~1 s earlier, seen from 2 m further back (0.25-0.28
+  // m median in local runs).
+  EXPECT_LT(fixes.Median(fixes.translation_m), 0.35);
+  EXPECT_LT(fixes.MaxOf(fixes.translation_m), 0.5);
+  EXPECT_LT(fixes.Median(fixes.yaw_deg), 0.6);
+  EXPECT_LT(fixes.MaxOf(fixes.yaw_deg), 1.5);
+  for (size_t i = 0; i < fixes.translation_m.size(); ++i) {
+    EXPECT_LT(fixes.translation_m[i], 3 * fixes.sigma_m[i]) << "fix " << i << " is overconfident";
+  }
   EXPECT_NE(agent_line.find("uav1: tracking"), std::string::npos) << agent_line;
   EXPECT_NE(agent_line.find("sigma"), std::string::npos) << agent_line;
   EXPECT_FALSE(latencies.empty());
