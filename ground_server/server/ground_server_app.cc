@@ -162,6 +162,12 @@ struct AgentState {
   uint64_t applied_reset = 0;    // reset_generation the estimator was made at
   int64_t out_seq = 0;           // relative_pose_t sequence
 
+  // Set by the keyframe thread, read by the estimation thread: a stored
+  // keyframe wakes the estimation (see AgentLoop).
+  std::atomic<uint64_t> keyframe_generation{0};
+  std::atomic<int64_t> newest_keyframe_t_ns{0};
+  std::atomic<int64_t> newest_keyframe_arrival_ns{0};  // steady clock
+
   // Guarded by `mutex`, which is never held during an estimate, so the LCM
   // and keyframe threads never wait for one.
   std::mutex mutex;
@@ -334,18 +340,51 @@ AgentState* GroundServerApp::Impl::Agent(const std::string& name) {
 }
 
 void GroundServerApp::Impl::AgentLoop(AgentState* agent) {
-  uint64_t seen = 0;
+  // When to estimate: right after a UAV keyframe is stored, once the UGV
+  // window has reached that keyframe's time (or after `kWindowWait`), so the
+  // newest UAV view pairs with the UGV view of the same instant and the
+  // relative pose follows the keyframe by the processing time only. While
+  // the UAV is silent (gone, or out of range), a new UGV window triggers the
+  // estimate instead: the place database still holds what the UAV sent.
+  // Never more often than estimate_period_s.
+  constexpr auto kWindowWait = std::chrono::milliseconds(500);
+  const auto period = std::chrono::duration_cast<SteadyClock::duration>(
+      std::chrono::duration<double>(options.estimate_period_s - 1e-3));
+  uint64_t seen_window = 0;
+  uint64_t seen_keyframe = 0;
   std::optional<SteadyClock::time_point> last;
+  auto uav_silent = [&] {
+    const int64_t arrival = agent->newest_keyframe_arrival_ns.load();
+    if (agent->keyframe_generation.load() == 0 || arrival == 0) return true;
+    const auto since = SteadyClock::now().time_since_epoch() - std::chrono::nanoseconds(arrival);
+    return since > 2 * period;
+  };
   while (!stopping) {
     std::deque<std::shared_ptr<const UgvKeyframe>> snapshot;
     {
       std::unique_lock<std::mutex> lock(window_mutex);
-      window_cv.wait_for(lock, std::chrono::milliseconds(200),
-                         [&] { return stopping || window_generation != seen; });
+      window_cv.wait_for(lock, std::chrono::milliseconds(200), [&] {
+        return stopping || agent->keyframe_generation.load() != seen_keyframe ||
+               (window_generation != seen_window && uav_silent());
+      });
       if (stopping) return;
-      if (window_generation == seen) continue;
-      if (last && SecondsSince(*last) < options.estimate_period_s - 1e-3) continue;
-      seen = window_generation;
+      const uint64_t keyframe_generation = agent->keyframe_generation.load();
+      const bool new_keyframe = keyframe_generation != seen_keyframe;
+      if (!new_keyframe && (window_generation == seen_window || !uav_silent())) continue;
+      if (last && SteadyClock::now() - *last < period) {
+        // Too soon: sleep out the period (waking for a shutdown only).
+        window_cv.wait_until(lock, *last + period, [&] { return stopping.load(); });
+        if (stopping) return;
+      }
+      if (new_keyframe) {
+        const int64_t air_t_ns = agent->newest_keyframe_t_ns.load();
+        window_cv.wait_for(lock, kWindowWait, [&] {
+          return stopping || (!window.empty() && window.back()->t_ns >= air_t_ns);
+        });
+        if (stopping) return;
+      }
+      seen_keyframe = keyframe_generation;
+      seen_window = window_generation;
       snapshot = window;
     }
     if (snapshot.empty()) continue;  // just reset by a clock jump
@@ -773,6 +812,16 @@ void GroundServerApp::Impl::ProcessAirPacket(const AirPacket& packet) {
   while (agent->received.size() > 64) agent->received.erase(agent->received.begin());
   Count(&GroundServerStats::air_keyframes);
   db_dirty = true;
+  // Wake the agent's estimation (under window_mutex, so its wait cannot miss it).
+  agent->newest_keyframe_t_ns = air_t_ns;
+  agent->newest_keyframe_arrival_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(packet.arrival.time_since_epoch())
+          .count();
+  {
+    std::lock_guard<std::mutex> window_lock(window_mutex);
+    ++agent->keyframe_generation;
+  }
+  window_cv.notify_all();
 }
 
 bool GroundServerApp::Impl::ApplyCameraInfo(const aglcm::camera_info_t& msg,

@@ -75,7 +75,7 @@ struct GroundServerOptions {
   double save_period_s = 10.0;         ///< persistence snapshot period when changed (s)
   double ugv_keyframe_period_s = 0.5;  ///< UGV keyframes for the sliding window (s)
   int window_size = 5;                 ///< UGV keyframes in the window
-  double estimate_period_s = 1.0;      ///< per agent, estimates and relative-pose messages (s)
+  double estimate_period_s = 1.0;      ///< per agent, at most one estimate per period (s)
   int image_queue = 4;                 ///< UGV keyframe images waiting for the frontend
   int pending_sensor_queue = 200;      ///< images/scans waiting for odometry
   int air_keyframe_queue = 32;         ///< UAV keyframe packets waiting to be decoded and stored
