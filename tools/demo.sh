@@ -84,8 +84,11 @@ end=$(date +%s)
 grep -E "^(==| )" "$work/monitor.log" || true
 echo
 echo "demo: fixes over time: $work/relative_poses.jsonl; logs: $work/*.log"
+# Each daemon's last line: its CPU time and peak memory over the run.
+usage() { grep -o "stopped.*CPU.*" "$1" | tail -n 1 | sed "s/^stopped[^;]*; //"; }
+echo "demo: ground_server: $(usage "$work/ground_server.log")"
 for a in $agents; do
-  grep -E "stats|keyframes" "$work/air_agent_$a.log" | tail -n 1 | sed "s/^/demo: air_agent $a: /" || true
+  echo "demo: air_agent $a: $(usage "$work/air_agent_$a.log")"
 done
 echo "demo: simulate $((simulated - start)) s, daemons $((end - simulated)) s (after the build)"
 if [ "$status" -ne 0 ]; then

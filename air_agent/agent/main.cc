@@ -9,6 +9,7 @@
 
 #include "air_agent/agent/air_agent_app.h"
 #include "common/config/options.h"
+#include "common/logging/logging.h"
 
 namespace {
 std::atomic<bool> g_stop{false};
@@ -76,7 +77,8 @@ int main(int argc, char** argv) {
     } else {
       agent_app.RunLive(g_stop);
     }
-    spdlog::info("air_agent stopped{}", g_stop ? " (signal)" : " (end of data)");
+    spdlog::info("air_agent stopped{}; {}", g_stop ? " (signal)" : " (end of data)",
+                 ag::ResourceUsage());
     return 0;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());

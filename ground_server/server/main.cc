@@ -7,6 +7,7 @@
 #include <csignal>
 
 #include "common/config/options.h"
+#include "common/logging/logging.h"
 #include "ground_server/server/ground_server_app.h"
 
 namespace {
@@ -52,7 +53,7 @@ int main(int argc, char** argv) {
     std::signal(SIGTERM, OnSignal);
     ag::GroundServerApp server(options);
     server.Run(g_stop);
-    spdlog::info("ground_server stopped");
+    spdlog::info("ground_server stopped; {}", ag::ResourceUsage());
     return 0;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <string>
+#include <vector>
 
 #include "common/logging/logging.h"
 #include "tests/support/test_support.h"
@@ -150,6 +152,28 @@ TEST(LoggingTest, SetupInstallsNamedLogger) {
   SetupLogging("unit_test", options);
   EXPECT_EQ(spdlog::default_logger()->name(), "unit_test");
   EXPECT_EQ(spdlog::default_logger()->level(), spdlog::level::debug);
+}
+
+/// CPU seconds in a ResourceUsage() line.
+double CpuSeconds(const std::string& usage) {
+  const size_t at = usage.find("CPU ");
+  EXPECT_NE(at, std::string::npos) << usage;
+  return at == std::string::npos ? -1.0 : std::stod(usage.substr(at + 4));
+}
+
+TEST(LoggingTest, ResourceUsageCountsCpuTimeAndMemory) {
+  const std::string before = ResourceUsage();
+  volatile double sink = 0;
+  std::vector<double> block(20'000'000, 1.0);  // 160 MB, touched
+  for (int pass = 0; pass < 5; ++pass) {
+    for (double& x : block) sink = sink + (x += 1e-9);
+  }
+  const std::string after = ResourceUsage();
+  EXPECT_GT(CpuSeconds(after), CpuSeconds(before)) << before << " / " << after;
+  EXPECT_NE(after.find("% of one core"), std::string::npos) << after;
+  const size_t rss = after.find("peak RSS ");
+  ASSERT_NE(rss, std::string::npos) << after;
+  EXPECT_GE(std::stoi(after.substr(rss + 9)), 150) << after;
 }
 
 }  // namespace
