@@ -9,6 +9,10 @@
 //    T_wa_wg within 0.5 m / 1.5 deg (median 0.35 m / 0.6 deg) of
 //    groundtruth.yaml and within 3 sigma of its covariance; both daemons end
 //    with status 0 on SIGTERM.
+//  TwoAirAgentsAreEstimatedSideBySide: as ThreeProcesses, plus a second
+//    air_agent (uav2) replaying uav1's camera from the dataset: both agents
+//    get their own relative poses, within the same bounds, and neither's
+//    estimation starves the other's.
 //  TwoHostsThrottledLink: the UAV (player --no-ground, air_agent with a
 //    0.5 Mbit/s budget) and the UGV (player --no-air, ground_server) in two
 //    namespaces joined by a veth pair; the air-to-ground direction is shaped
@@ -36,6 +40,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <regex>
 #include <sstream>
@@ -293,6 +298,84 @@ exit 0
   EXPECT_NE(agent_line.find("uav1: tracking"), std::string::npos) << agent_line;
   EXPECT_NE(agent_line.find("sigma"), std::string::npos) << agent_line;
   EXPECT_FALSE(latencies.empty());
+}
+
+TEST(GroundServerDaemon, TwoAirAgentsAreEstimatedSideBySide) {
+  AG_REQUIRE_NETNS();
+  const std::string dataset = test::CachedSmallDataset(kDurationS, kSeed);
+  test::TempDir tmp;
+  WriteConfigs(tmp);
+  fs::create_directories(tmp / "cap");
+  // uav1 is live (its camera and VIO played over LCM); uav2 is a second
+  // air_agent replaying uav1's camera from the dataset under its own name,
+  // so both have the same true T_wa_wg and reach ground_server on their own
+  // channels at the same time.
+  const std::string script = Paths(dataset) + "URL='" + kUdpUrl + "'\n" + R"SH(
+$CAP --pattern 'AG_(RELATIVE_POSE|AIR_KEYFRAME)_uav[12]' --count 100000 --timeout 120 --out cap --lcm-url "$URL&recv_buf_size=8388608" > cap.log 2>&1 &
+C=$!
+wait_for cap/READY ok 10 || echo capture_not_ready
+$GS --config ground.yaml --calibration $D/ground/calibration.yaml --lcm-url "$URL" > ground.log 2>&1 &
+G=$!
+$AIR --agent uav1 --config air.yaml --calibration $D/air/uav1/calibration.yaml --lcm-url "$URL" > air1.log 2>&1 &
+A1=$!
+wait_for ground.log 'listening on' 60 || echo ground_not_listening
+wait_for air1.log 'listening on' 60 || echo air_not_listening
+$AIR --agent uav2 --dataset $D --dataset-agent uav1 --speed 1 --config air.yaml --lcm-url "$URL" > air2.log 2>&1 &
+A2=$!
+$PLAY --dataset $D --lcm-url "$URL" > player.out 2> player.log
+echo player_status=$?
+wait $A2
+echo air2_status=$?
+sleep 3
+stop $G ground
+stop $A1 air1
+kill $C 2>/dev/null; wait $C
+exit 0
+)SH";
+  int status = 0;
+  const std::string log = RunScript(tmp, script, &status);
+  const std::string ground_log = test::ReadFileText(tmp / "ground.log");
+  const std::string all =
+      log + "\n--- ground_server (last 6000 chars):\n" +
+      ground_log.substr(ground_log.size() - std::min<size_t>(6000, ground_log.size())) +
+      "\n--- air_agent uav2:\n" + test::ReadFileText(tmp / "air2.log");
+  ASSERT_EQ(status, 0) << all;
+  EXPECT_EQ(log.find("not_"), std::string::npos) << all;
+  EXPECT_EQ(test::ScriptValue(log, "player_status"), 0) << all;
+  EXPECT_EQ(test::ScriptValue(log, "air2_status"), 0) << all;
+  EXPECT_EQ(test::ScriptValue(log, "ground_status"), 0) << all;
+  EXPECT_EQ(test::ScriptValue(log, "air1_status"), 0) << all;
+
+  const std::string ugv = test::LastLineWith(ground_log, "] ugv: odometry");
+  EXPECT_EQ(test::Field(ugv, "bad messages"), 0) << ugv;
+  EXPECT_EQ(test::Field(ugv, "rejected"), 0) << ugv;
+  EXPECT_EQ(test::Field(ugv, "unknown camera"), 0) << ugv;
+
+  const std::vector<test::Captured> capture = test::ReadCapture(tmp / "cap");
+  const Pose truth = ReadGroundTruth(dataset + "/groundtruth.yaml").T_wa_wg.at("uav1");
+  std::map<std::string, int> tracking;
+  for (const std::string agent : {"uav1", "uav2"}) {
+    SCOPED_TRACE(agent);
+    const std::vector<ReceivedPose> poses = RelativePoses(capture, agent);
+    for (const ReceivedPose& p : poses) EXPECT_EQ(p.estimate.agent, agent);
+    EXPECT_GE(Keyframes(capture, agent).size(), 8u) << all;
+    const FixSummary fixes = Fixes(poses, truth);
+    tracking[agent] = fixes.tracking;
+    const std::string line = test::LastLineWith(ground_log, "] " + agent + ": ");
+    std::printf("%s: %zu relative poses, %d tracking\n  %s\n", agent.c_str(), poses.size(),
+                fixes.tracking, line.c_str());
+    ASSERT_GT(fixes.tracking, 0) << all;
+    // The bounds of ThreeProcessesTrackTheSmallScenario, per agent.
+    EXPECT_LT(fixes.Median(fixes.translation_m), 0.35);
+    EXPECT_LT(fixes.MaxOf(fixes.translation_m), 0.5);
+    EXPECT_LT(fixes.Median(fixes.yaw_deg), 0.6);
+    EXPECT_LT(fixes.MaxOf(fixes.yaw_deg), 1.5);
+    EXPECT_NE(line.find(agent + ": tracking"), std::string::npos) << line;
+  }
+  // Each agent has its own estimation thread: neither starves the other.
+  EXPECT_GE(std::min(tracking["uav1"], tracking["uav2"]) * 2,
+            std::max(tracking["uav1"], tracking["uav2"]))
+      << "uav1 " << tracking["uav1"] << " vs uav2 " << tracking["uav2"] << " tracking fixes";
 }
 
 /// The largest sum of `bytes` over packets in any window (t - window, t]
