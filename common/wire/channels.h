@@ -19,6 +19,14 @@ inline std::string RelativePoseChannel(const std::string& agent) {
 /// Regular expressions (LCM subscribe patterns) for every agent.
 inline const char* kAirKeyframePattern = "AG_AIR_KEYFRAME_[a-z0-9_]+";
 inline const char* kAirCameraInfoPattern = "AG_AIR_CAMERA_INFO_[a-z0-9_]+";
+/// The same for the agents whose names match `agents` (a POSIX extended
+/// regular expression over the whole name, as LCM matches channels).
+inline std::string AirKeyframePattern(const std::string& agents) {
+  return "AG_AIR_KEYFRAME_(" + agents + ")";
+}
+inline std::string AirCameraInfoPattern(const std::string& agents) {
+  return "AG_AIR_CAMERA_INFO_(" + agents + ")";
+}
 
 /// UGV sensor streams (ground_server input, tools/play_dataset output).
 inline const char* kUgvImageChannel = "AG_UGV_IMAGE";

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <regex>
 #include <thread>
 
 #include "common/config/options.h"
@@ -141,6 +142,15 @@ void GroundServerOptions::Check() const {
   CheckOption(air_keyframe_queue >= 1, "air_keyframe_queue", "must be >= 1");
   CheckOption(odometry_queue_messages >= 1, "odometry_queue_messages", "must be >= 1");
   CheckOption(max_air_agents >= 1, "max_air_agents", "must be >= 1");
+  std::string regex_error;
+  try {
+    std::regex(air_agents, std::regex::extended);
+  } catch (const std::regex_error& e) {
+    regex_error = e.what();
+  }
+  CheckOption(!air_agents.empty() && regex_error.empty(), "air_agents",
+              "must be a POSIX extended regular expression over agent names; got '" + air_agents +
+                  "'" + (regex_error.empty() ? "" : " (" + regex_error + ")"));
   CheckOption(clock_jump_s > 0, "clock_jump_s", "must be > 0");
   CheckOption(clock_jump_confirmations >= 1, "clock_jump_confirmations", "must be >= 1");
   CheckOption(stats_period_s > 0, "stats_period_s", "must be > 0");
@@ -1045,8 +1055,10 @@ void GroundServerApp::Impl::Subscribe() {
   subscriptions.back()->setQueueCapacity(options.odometry_queue_messages);
   subscriptions.push_back(lcm->subscribe(kUgvPointsChannel, &Impl::OnPoints, this));
   subscriptions.push_back(lcm->subscribe(kUgvImageChannel, &Impl::OnImage, this));
-  subscriptions.push_back(lcm->subscribe(kAirKeyframePattern, &Impl::OnAirKeyframe, this));
-  subscriptions.push_back(lcm->subscribe(kAirCameraInfoPattern, &Impl::OnCameraInfo, this));
+  subscriptions.push_back(
+      lcm->subscribe(AirKeyframePattern(options.air_agents), &Impl::OnAirKeyframe, this));
+  subscriptions.push_back(
+      lcm->subscribe(AirCameraInfoPattern(options.air_agents), &Impl::OnCameraInfo, this));
   // Keyframe packets and camera infos only wait for a queue push here.
   subscriptions[3]->setQueueCapacity(std::max(30, options.air_keyframe_queue));
 }
@@ -1120,7 +1132,8 @@ void GroundServerApp::Run(const std::atomic<bool>& stop) {
   Impl& s = *impl_;
   s.StartThreads();
   spdlog::info("ground_server: listening on {}, {}, {} and air agents' {} / {}", kUgvImageChannel,
-               kUgvOdometryChannel, kUgvPointsChannel, kAirKeyframePattern, kAirCameraInfoPattern);
+               kUgvOdometryChannel, kUgvPointsChannel, AirKeyframePattern(s.options.air_agents),
+               AirCameraInfoPattern(s.options.air_agents));
   auto last_stats = SteadyClock::now();
   while (!stop) {
     s.lcm->handleTimeout(100);

@@ -83,6 +83,10 @@ struct GroundServerOptions {
   /// 0.3 s of 100 Hz odometry, less than a burst of scans and images takes.
   int odometry_queue_messages = 1000;
   int max_air_agents = 32;  ///< air agents tracked at once; keyframes of more are refused
+  /// Air agents served: a POSIX extended regular expression over the whole
+  /// agent name (the channel suffix), e.g. "uav[0-9]+" or "uav1|uav3".
+  /// Others' channels are not even subscribed to.
+  std::string air_agents = "[a-z0-9_]+";
   /// Odometry older than the newest by more than this (s), for
   /// clock_jump_confirmations messages in a row: the UGV clock went back
   /// (replay, restart), and the time-dependent state is reset.
@@ -116,6 +120,7 @@ struct GroundServerOptions {
     v("air_keyframe_queue", air_keyframe_queue);
     v("odometry_queue_messages", odometry_queue_messages);
     v("max_air_agents", max_air_agents);
+    v("air_agents", air_agents);
     v("clock_jump_s", clock_jump_s);
     v("clock_jump_confirmations", clock_jump_confirmations);
     v("stats_period_s", stats_period_s);

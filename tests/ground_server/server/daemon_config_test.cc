@@ -29,5 +29,21 @@ TEST(GroundServerConfig, CheckCatchesAMisspelledKey) {
   EXPECT_EQ(missing[0], "line 3: estimate_period_s");
 }
 
+TEST(GroundServerConfig, ABadAirAgentsPatternIsAnErrorNamingTheKey) {
+  test::TempDir tmp;
+  std::ofstream(tmp / "agents.yaml") << "calibration_file: c.yaml\nair_agents: \"uav[0-9\"\n";
+  try {
+    LoadOptions<GroundServerOptions>(LoadYamlFile(tmp / "agents.yaml"), "agents.yaml");
+    FAIL() << "no error for an unbalanced bracket";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("air_agents"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("uav[0-9"), std::string::npos) << e.what();
+  }
+  GroundServerOptions good;
+  good.calibration_file = "c.yaml";
+  good.air_agents = "uav1|uav3";
+  EXPECT_NO_THROW(CheckOptions(good));
+}
+
 }  // namespace
 }  // namespace ag

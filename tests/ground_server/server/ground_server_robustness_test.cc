@@ -442,5 +442,28 @@ TEST_F(GroundServerRobustness, CountsHostileMessagesAndKeepsProcessingGoodData) 
   EXPECT_EQ(again.app().PlaceDbSize(), 6);
 }
 
+TEST_F(GroundServerRobustness, ServesOnlyTheConfiguredAirAgents) {
+  ASSERT_TRUE(lcm_.good());
+  options_.persistence_dir.clear();
+  options_.air_agents = "uav1|uav3";
+  ServerRunner server(options_, &lcm_);
+  for (const std::string agent : {"uav1", "uav2", "uav3", "uav10"}) {
+    Publish(AirCameraInfoChannel(agent), CameraInfoMessage(agent, "cam0"));
+    for (int64_t seq = 0; seq < 2; ++seq) {
+      Publish(AirKeyframeChannel(agent), AirPacket(agent, seq, "cam0"));
+    }
+  }
+  const bool stored =
+      server.WaitFor([](const GroundServerStats& s) { return s.air_keyframes >= 4; }, 10.0);
+  // uav2 and uav10 (the pattern matches whole names) are not listened to.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const GroundServerStats s = server.app().stats();
+  EXPECT_TRUE(stored) << Describe(s);
+  EXPECT_EQ(s.air_packets, 4) << Describe(s);
+  EXPECT_EQ(s.air_keyframes, 4) << Describe(s);
+  EXPECT_EQ(s.camera_infos, 2) << Describe(s);
+  EXPECT_EQ(s.bad_messages, 0) << Describe(s);
+}
+
 }  // namespace
 }  // namespace ag
