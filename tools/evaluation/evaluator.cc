@@ -225,9 +225,20 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
           }
           const auto before = err(r.ugv_T_wg_c_lio);
           const auto after = err(r.ugv_T_wg_c_refined);
+          // Rotation errors as vectors in the camera frame (x right, y
+          // down, z forward; deg), to tell a wrong direction from a short one.
+          auto axis = [&](const Pose& T) -> Eigen::Vector3d {
+            const Eigen::AngleAxisd a((truth.inverse() * T).linear());
+            return a.axis() * a.angle() * 180 / M_PI;
+          };
+          const Eigen::Vector3d v_before = axis(r.ugv_T_wg_c_lio);
+          const Eigen::Vector3d v_after = axis(r.ugv_T_wg_c_refined);
           spdlog::debug(
-              "  UGV camera vs truth: LIO {:.3f} deg {:.3f} m, stage 1 {:.3f} deg {:.3f} m",
-              before.first, before.second, after.first, after.second);
+              "  UGV camera vs truth: LIO {:.3f} deg {:.3f} m, stage 1 {:.3f} deg {:.3f} m; "
+              "rotation error (camera xyz, deg) LIO {:+.2f} {:+.2f} {:+.2f}, stage 1 {:+.2f} "
+              "{:+.2f} {:+.2f}",
+              before.first, before.second, after.first, after.second, v_before.x(), v_before.y(),
+              v_before.z(), v_after.x(), v_after.y(), v_after.z());
         }
       }
       result.estimates[s.name].push_back(log);
