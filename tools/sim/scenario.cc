@@ -44,6 +44,10 @@ GroundAgentOptions::GroundAgentOptions() {
 void GroundAgentOptions::Check() const {
   CheckOption(body_height_m > 0.05 && body_height_m < 3.0, "body_height_m", "must be in (0.05, 3)");
   CheckOption(vibration_deg >= 0 && vibration_deg < 5, "vibration_deg", "must be in [0, 5)");
+  CheckOption(camera_error_scale >= 0 && camera_error_scale <= 10, "camera_error_scale",
+              "must be in [0, 10]");
+  CheckOption(lidar_error_scale >= 0 && lidar_error_scale <= 10, "lidar_error_scale",
+              "must be in [0, 10]");
 }
 
 AirAgentOptions::AirAgentOptions() {

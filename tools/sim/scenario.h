@@ -51,6 +51,11 @@ struct GroundAgentOptions {
   LidarOptions lidar;
   OdometryOptions odometry;
   CalibrationErrorOptions calibration_error;
+  /// The camera's and the LiDAR's mounting errors (rotation and translation)
+  /// are each drawn from calibration_error, then scaled by these: 0 makes
+  /// that sensor's nominal mounting exact, to see what each error costs.
+  double camera_error_scale = 1.0;
+  double lidar_error_scale = 1.0;
 
   GroundAgentOptions();
   template <class V>
@@ -62,6 +67,8 @@ struct GroundAgentOptions {
     v("lidar", lidar);
     v("odometry", odometry);
     v("calibration_error", calibration_error);
+    v("camera_error_scale", camera_error_scale);
+    v("lidar_error_scale", lidar_error_scale);
   }
   void Check() const;
 };

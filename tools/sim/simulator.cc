@@ -50,6 +50,17 @@ Pose RandomPerturbation(SimRandom& rng, const CalibrationErrorOptions& o) {
   return delta;
 }
 
+/// `delta` with its rotation angle and translation times `scale` (the
+/// same draw, so a scale of 1 changes nothing).
+Pose Scaled(const Pose& delta, double scale) {
+  if (scale == 1.0) return delta;
+  const Eigen::AngleAxisd a(delta.linear());
+  Pose out = Pose::Identity();
+  out.linear() = Eigen::AngleAxisd(a.angle() * scale, a.axis()).toRotationMatrix();
+  out.translation() = scale * delta.translation();
+  return out;
+}
+
 Pose LidarNominal(const LidarOptions& o) {
   Pose T = Pose::Identity();
   T.linear() = RotZ(o.yaw_deg * kDeg);
@@ -123,14 +134,16 @@ Simulation::Simulation(const Scenario& scenario, uint64_t seed, const std::strin
     SimRandom cal(seed, "calibration/ground");
     ground->T_body_camera_nominal = g.camera.NominalBodyCamera();
     ground->T_body_camera_true =
-        ground->T_body_camera_nominal * RandomPerturbation(cal, g.calibration_error);
+        ground->T_body_camera_nominal *
+        Scaled(RandomPerturbation(cal, g.calibration_error), g.camera_error_scale);
     ground->camera_offset_nominal_s = g.camera.time_offset_s;
     ground->camera_offset_true_s =
         g.camera.time_offset_s + cal.Sign() * cal.Uniform(g.calibration_error.time_offset_min_s,
                                                           g.calibration_error.time_offset_max_s);
     ground->T_body_lidar_nominal = LidarNominal(g.lidar);
     ground->T_body_lidar_true =
-        ground->T_body_lidar_nominal * RandomPerturbation(cal, g.calibration_error);
+        ground->T_body_lidar_nominal *
+        Scaled(RandomPerturbation(cal, g.calibration_error), g.lidar_error_scale);
     ground->lidar_offset_s = g.lidar.time_offset_s;
     ground->odometry = g.odometry;
     KeepOutPath k;

@@ -82,6 +82,32 @@ TEST(SimScenario, TrueCalibrationDiffersFromNominalByTheConfiguredAmounts) {
   }
 }
 
+TEST(SimScenario, ErrorScalesShrinkOneSensorsMountingErrorOnly) {
+  Scenario scenario = LoadScenario(Preset("covisible"));
+  const Simulation reference(scenario, 3);
+  scenario.options.ground.camera_error_scale = 0.0;
+  scenario.options.ground.lidar_error_scale = 0.5;
+  const Simulation scaled(scenario, 3);
+  const SimAgent& r = reference.ground();
+  const SimAgent& s = scaled.ground();
+  auto angle_deg = [](const Pose& d) { return Eigen::AngleAxisd(d.linear()).angle() / kDeg; };
+  // The camera's mounting is exact; its time offset error stays.
+  EXPECT_TRUE(s.T_body_camera_true.isApprox(s.T_body_camera_nominal, 1e-15));
+  EXPECT_EQ(s.camera_offset_true_s, r.camera_offset_true_s);
+  // The LiDAR's error is the same draw at half the size.
+  const Pose dr = r.T_body_lidar_nominal.inverse() * r.T_body_lidar_true;
+  const Pose ds = s.T_body_lidar_nominal.inverse() * s.T_body_lidar_true;
+  EXPECT_GT(angle_deg(dr), 0.4);
+  EXPECT_NEAR(angle_deg(ds), 0.5 * angle_deg(dr), 1e-9);
+  EXPECT_NEAR(
+      (Eigen::AngleAxisd(ds.linear()).axis() - Eigen::AngleAxisd(dr.linear()).axis()).norm(), 0.0,
+      1e-9);
+  EXPECT_TRUE(ds.translation().isApprox(0.5 * dr.translation(), 1e-12));
+
+  scenario.options.ground.lidar_error_scale = -1.0;
+  EXPECT_THROW(scenario.options.ground.Check(), std::exception);
+}
+
 TEST(SimScenario, AgentsMoveSmoothlyAtTheirSpeedAndHeight) {
   const Scenario scenario = LoadScenario(Preset("covisible"));
   const Simulation sim(scenario, 1);
