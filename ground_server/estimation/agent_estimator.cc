@@ -187,19 +187,34 @@ EstimateResult AgentEstimator::Estimate(
   std::vector<RayPointCorrespondence> corr;
   std::vector<CorrespondenceSource> origin;
   int used_pairs = 0;
+  // Pairs whose UGV keyframe left the window are matched no more.
+  for (auto e = match_cache_.begin(); e != match_cache_.end();) {
+    const bool in_window = std::any_of(window.begin(), window.end(),
+                                       [&](const auto& kf) { return kf.get() == e->first.first; });
+    e = in_window ? std::next(e) : match_cache_.erase(e);
+  }
   for (size_t p = 0; p < pairs.size(); ++p) {
     const PairCandidate& pc = pairs[p];
-    auto it = rows.find(pc.ugv);
-    if (it == rows.end()) it = rows.emplace(pc.ugv, RowsWithDepth(*window[pc.ugv])).first;
-    const auto matches =
-        MatchDescriptors(it->second.descriptors, pc.air->features.descriptors, options_.matcher);
+    const auto key = std::make_pair(window[pc.ugv].get(), pc.air.get());
+    auto cached = match_cache_.find(key);
+    if (cached == match_cache_.end()) {
+      auto it = rows.find(pc.ugv);
+      if (it == rows.end()) it = rows.emplace(pc.ugv, RowsWithDepth(*window[pc.ugv])).first;
+      CachedMatches entry{window[pc.ugv], pc.air, {}};
+      for (const DescriptorMatch& m : MatchDescriptors(
+               it->second.descriptors, pc.air->features.descriptors, options_.matcher)) {
+        entry.matches.push_back({it->second.keypoint[m.a], m.b, m.distance});
+      }
+      cached = match_cache_.emplace(key, std::move(entry)).first;
+    }
+    const std::vector<DescriptorMatch>& matches = cached->second.matches;
     if (static_cast<int>(matches.size()) < options_.min_matches) continue;
     ++used_pairs;
     auto [ai, inserted] = air_index.emplace(pc.air->seq, static_cast<int>(air_frames.size()));
     if (inserted) air_frames.push_back(pc.air);
     const Camera& cam = *air_cameras_.at(pc.air->camera_id);
     for (const DescriptorMatch& m : matches) {
-      const int ugv_kp = it->second.keypoint[m.a];
+      const int ugv_kp = m.a;
       RayPointCorrespondence k;
       k.p_wg = window[pc.ugv]->points_wg[ugv_kp];
       k.uv = pc.air->features.keypoints[m.b].cast<double>();

@@ -168,6 +168,17 @@ class AgentEstimator {
   Pose camera_correction_ = Pose::Identity();
   int correction_windows_ = 0;
   std::deque<Eigen::Vector4d> recent_estimates_;  ///< (x, y, z, yaw) of the latest estimates
+  /// Descriptor matches of a (UGV keyframe, UAV keyframe) pair, `a` being
+  /// the UGV keypoint and `b` the UAV keypoint, kept while the UGV keyframe is in
+  /// the window: consecutive estimates share most pairs, and keyframes are
+  /// immutable, so a pair is matched once. The entry holds both keyframes,
+  /// so an address is never reused while it is a key.
+  struct CachedMatches {
+    std::shared_ptr<const UgvKeyframe> ugv;
+    std::shared_ptr<const AirKeyframe> air;
+    std::vector<DescriptorMatch> matches;
+  };
+  std::map<std::pair<const UgvKeyframe*, const AirKeyframe*>, CachedMatches> match_cache_;
 };
 
 }  // namespace ag

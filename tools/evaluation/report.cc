@@ -168,7 +168,9 @@ nlohmann::json MakeReport(const ReportInput& in) {
       {"retrieval", StatsJson(ComputeStats(in.timing.retrieval), false)},
       {"depth_association_per_keyframe",
        StatsJson(ComputeStats(in.timing.depth_association_per_keyframe), false)},
-      {"air_features_per_frame", StatsJson(ComputeStats(in.timing.air_features_per_frame), false)}};
+      {"air_features_per_frame", StatsJson(ComputeStats(in.timing.air_features_per_frame), false)},
+      {"matching", StatsJson(ComputeStats(in.timing.matching), false)},
+      {"ransac", StatsJson(ComputeStats(in.timing.ransac), false)}};
   report["timing_ms"]["estimate"]["max"] = ComputeStats(in.timing.estimate).max;
   report["success"] = success && in.has_groundtruth;
   return report;

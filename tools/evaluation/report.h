@@ -54,6 +54,7 @@ struct AgentRecord {
 struct TimingRecord {
   std::vector<double> estimate, stage1, stage2, retrieval, depth_association_per_keyframe,
       air_features_per_frame;
+  std::vector<double> matching, ransac;  ///< beyond the spec: the rest of an estimate
 };
 
 struct ReportInput {
