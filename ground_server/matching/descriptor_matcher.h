@@ -17,11 +17,13 @@ struct DescriptorMatch {
 /// Mutual nearest neighbours with Lowe's ratio test, as the paper matches
 /// air and ground descriptors (with FAISS).
 struct MatcherOptions {
-  std::string backend = "faiss";  ///< "faiss" (exact flat L2) or "opencv" (BFMatcher)
-  double ratio = 0.9;             ///< nearest / second-nearest distance must be below this
-  bool mutual = true;             ///< keep only pairs that are each other's nearest
-  double max_distance = 1.2;      ///< reject matches farther than this (unit descriptors: [0, 2])
-  int threads = 1;                ///< FAISS OpenMP threads for the calling thread
+  /// "gemm" (one OpenCV matrix product for both directions, the fastest),
+  /// "faiss" (exact flat L2) or "opencv" (BFMatcher); all exact
+  std::string backend = "gemm";
+  double ratio = 0.9;         ///< nearest / second-nearest distance must be below this
+  bool mutual = true;         ///< keep only pairs that are each other's nearest
+  double max_distance = 1.2;  ///< reject matches farther than this (unit descriptors: [0, 2])
+  int threads = 1;            ///< FAISS OpenMP threads for the calling thread
 
   template <class V>
   void VisitFields(V& v) {
@@ -35,7 +37,7 @@ struct MatcherOptions {
 };
 
 /// Matches two descriptor sets (rows, CV_32F, same number of columns).
-/// Exact: both backends search exhaustively; the result is sorted by `a`.
+/// Exact: every backend searches exhaustively; the result is sorted by `a`.
 /// Throws std::invalid_argument naming the problem when the types or
 /// dimensions differ (callers check descriptor_type before matching).
 std::vector<DescriptorMatch> MatchDescriptors(const cv::Mat& a, const cv::Mat& b,

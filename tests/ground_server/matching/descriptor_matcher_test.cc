@@ -86,18 +86,25 @@ TEST_P(MatcherTest, MutualCheckDropsOneSidedMatches) {
   EXPECT_EQ(MatchDescriptors(a, b, o).size(), 2u);
 }
 
-INSTANTIATE_TEST_SUITE_P(Backends, MatcherTest, ::testing::Values("faiss", "opencv"));
+INSTANTIATE_TEST_SUITE_P(Backends, MatcherTest, ::testing::Values("gemm", "faiss", "opencv"));
 
 TEST(MatcherTest, BackendsAgree) {
   const Pair p = MakePair(1024, 0, 0.2f, 3);
-  MatcherOptions f, c;
-  c.backend = "opencv";
+  MatcherOptions f;
+  f.backend = "faiss";
   const auto mf = MatchDescriptors(p.a, p.b, f);
-  const auto mc = MatchDescriptors(p.a, p.b, c);
-  ASSERT_EQ(mf.size(), mc.size());
-  for (size_t i = 0; i < mf.size(); ++i) {
-    EXPECT_EQ(mf[i].a, mc[i].a);
-    EXPECT_EQ(mf[i].b, mc[i].b);
+  ASSERT_GT(mf.size(), 500u);
+  for (const char* other : {"opencv", "gemm"}) {
+    SCOPED_TRACE(other);
+    MatcherOptions c;
+    c.backend = other;
+    const auto mc = MatchDescriptors(p.a, p.b, c);
+    ASSERT_EQ(mf.size(), mc.size());
+    for (size_t i = 0; i < mf.size(); ++i) {
+      EXPECT_EQ(mf[i].a, mc[i].a);
+      EXPECT_EQ(mf[i].b, mc[i].b);
+      EXPECT_NEAR(mf[i].distance, mc[i].distance, 1e-3);
+    }
   }
 }
 
