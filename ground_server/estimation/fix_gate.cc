@@ -20,6 +20,7 @@ const char* ToString(FixStatus status) {
 
 void FixGate::Options::Check() const {
   CheckOption(confirmations >= 1, "confirmations", "must be >= 1");
+  CheckOption(jump_confirmations >= 1, "jump_confirmations", "must be >= 1");
   CheckOption(agree_translation_m > 0, "agree_translation_m", "must be > 0");
   CheckOption(agree_yaw_deg > 0, "agree_yaw_deg", "must be > 0");
   CheckOption(lost_after_s > 0, "lost_after_s", "must be > 0");
@@ -60,7 +61,9 @@ FixGate::Decision FixGate::Offer(int64_t t_ns, const Pose& T_wa_wg) {
     candidate_count_ = 1;
   }
   candidate_ = T_wa_wg;
-  if (candidate_count_ >= options_.confirmations) {
+  const bool jump = fix_ && status_ != FixStatus::kLost;
+  const int needed = jump ? options_.jump_confirmations : options_.confirmations;
+  if (candidate_count_ >= needed) {
     fix_ = T_wa_wg;
     last_fix_t_ns_ = t_ns;
     candidate_.reset();
@@ -74,7 +77,7 @@ FixGate::Decision FixGate::Offer(int64_t t_ns, const Pose& T_wa_wg) {
   d.status = status_;
   d.reason = std::string(fix_ ? "estimate disagrees with the current fix; " : "") +
              "awaiting confirmation " + std::to_string(candidate_count_) + "/" +
-             std::to_string(options_.confirmations);
+             std::to_string(needed);
   return d;
 }
 

@@ -15,14 +15,17 @@ const char* ToString(FixStatus status);
 
 /// Decides which estimates become published fixes, so that one aliased
 /// match cannot produce a false fix: a first fix, or an estimate far from
-/// the current fix, is published only after `confirmations` consecutive
-/// estimates agree with it; estimates close to the current fix are
-/// published at once. Without any accepted estimate for `lost_after_s` the
-/// status becomes lost (the last fix is still reported).
+/// the current fix, is published only after `confirmations` (a jump:
+/// `jump_confirmations`) consecutive estimates agree with it; estimates close to the current fix
+/// are published at once. Without any accepted estimate for `lost_after_s` the status becomes lost
+/// (the last fix is still reported).
 class FixGate {
  public:
   struct Options {
-    int confirmations = 2;             ///< consecutive agreeing estimates for a new fix
+    int confirmations = 2;  ///< consecutive agreeing estimates for a new fix
+    /// ... to replace a current fix (a jump): more, because consecutive
+    /// estimates share most of their data, so two can be wrong together
+    int jump_confirmations = 3;
     double agree_translation_m = 0.3;  ///< estimates closer than this agree (m)
     double agree_yaw_deg = 2.0;        ///< ... and closer than this in yaw (deg)
     double lost_after_s = 10.0;        ///< no accepted estimate for this long: lost (s)
@@ -30,6 +33,7 @@ class FixGate {
     template <class V>
     void VisitFields(V& v) {
       v("confirmations", confirmations);
+      v("jump_confirmations", jump_confirmations);
       v("agree_translation_m", agree_translation_m);
       v("agree_yaw_deg", agree_yaw_deg);
       v("lost_after_s", lost_after_s);
