@@ -209,10 +209,17 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
             InterpolateInBuffer(dataset.ground.groundtruth, t_ns + SecondsToNs(cam.time_offset_s));
         if (body.ok()) {
           const Pose truth = body.T * cam.T_body_camera;
+          // A camera pose's error: rotation as a vector in the camera frame
+          // (x right, y down, z forward; deg; its norm is the angle), to
+          // tell a wrong direction from a short one, and translation (m).
+          struct CameraError {
+            Eigen::Vector3d rotation_deg;
+            double translation_m;
+          };
           auto err = [&](const Pose& T) {
             const Pose d = truth.inverse() * T;
-            return std::make_pair(Eigen::AngleAxisd(d.linear()).angle() * 180 / M_PI,
-                                  d.translation().norm());
+            const Eigen::AngleAxisd a(d.linear());
+            return CameraError{a.axis() * a.angle() * 180 / M_PI, d.translation().norm()};
           };
           if (log.error && log.drift_free_error) {
             const PoseError initial = FourDofError(r.T_wa_wg_initial, *s.truth);
@@ -225,22 +232,16 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
                 log.drift_free_error->yaw_deg, (*log.drift_free_residual)[0],
                 (*log.drift_free_residual)[1], (*log.drift_free_residual)[2], r.inliers, r.pairs);
           }
-          const auto before = err(r.ugv_T_wg_c_lio);
-          const auto after = err(r.ugv_T_wg_c_refined);
-          // Rotation errors as vectors in the camera frame (x right, y
-          // down, z forward; deg), to tell a wrong direction from a short one.
-          auto axis = [&](const Pose& T) -> Eigen::Vector3d {
-            const Eigen::AngleAxisd a((truth.inverse() * T).linear());
-            return a.axis() * a.angle() * 180 / M_PI;
-          };
-          const Eigen::Vector3d v_before = axis(r.ugv_T_wg_c_lio);
-          const Eigen::Vector3d v_after = axis(r.ugv_T_wg_c_refined);
+          const CameraError before = err(r.ugv_T_wg_c_lio);
+          const CameraError after = err(r.ugv_T_wg_c_refined);
+          const Eigen::Vector3d& v_before = before.rotation_deg;
+          const Eigen::Vector3d& v_after = after.rotation_deg;
           spdlog::debug(
               "  UGV camera vs truth: LIO {:.3f} deg {:.3f} m, stage 1 {:.3f} deg {:.3f} m; "
               "rotation error (camera xyz, deg) LIO {:+.2f} {:+.2f} {:+.2f}, stage 1 {:+.2f} "
               "{:+.2f} {:+.2f}",
-              before.first, before.second, after.first, after.second, v_before.x(), v_before.y(),
-              v_before.z(), v_after.x(), v_after.y(), v_after.z());
+              v_before.norm(), before.translation_m, v_after.norm(), after.translation_m,
+              v_before.x(), v_before.y(), v_before.z(), v_after.x(), v_after.y(), v_after.z());
         }
       }
       result.estimates[s.name].push_back(log);
