@@ -25,7 +25,9 @@ int main(int argc, char** argv) {
   double duration = 0;
   app.add_option("--dataset", dataset_dir, "dataset folder (shared/spec/dataset.md)")->required();
   app.add_option("--config", config_path,
-                 "YAML with evaluation options (see config/evaluate.yaml)");
+                 "YAML overriding evaluation options: keys as in config/ground_server.yaml "
+                 "(features, estimator, map, place_db, ...), and `air` with the options of "
+                 "config/air_agent.yaml; the effective values are logged at start");
   app.add_option("--out", out_dir, "output folder (report.json, <agent>_mapped.tum, plots)");
   app.add_option("--keypoints", keypoints, "override: keypoints per keyframe (both agents)");
   app.add_option("--encoding", encoding,
