@@ -81,7 +81,8 @@ AgentEstimator::AgentEstimator(std::string agent, const EstimatorOptions& option
     : agent_(std::move(agent)),
       options_(options),
       ugv_camera_(std::move(ugv_camera)),
-      gate_(options.gate) {
+      gate_(options.gate),
+      camera_rotation_(options.camera_rotation) {
   options_.Check();
 }
 
@@ -92,6 +93,43 @@ void AgentEstimator::SetAirCamera(const std::string& camera_id,
 
 bool AgentEstimator::HasAirCamera(const std::string& camera_id) const {
   return air_cameras_.count(camera_id) > 0;
+}
+
+void AgentEstimator::UpdateCameraRotation(
+    const std::deque<std::shared_ptr<const UgvKeyframe>>& window,
+    const std::vector<UgvTrack>& tracks, const std::vector<std::pair<int, int>>& track_key) {
+  int added = 0;
+  for (size_t t = 0; t < tracks.size(); ++t) {
+    const UgvTrack& track = tracks[t];
+    if (!track.has_plane()) continue;
+    const UgvKeyframe& host = *window[track.host_frame];
+    for (const auto& [m, uv] : track.observations) {
+      PlaneTrackObservation o;
+      o.T_wg_c_host = host.T_wg_c;
+      o.f_host = track.f_host;
+      o.plane = track.plane;
+      o.T_wg_c_obs = window[m]->T_wg_c;
+      o.f_obs = ugv_camera_->UndistortToNormalized(uv);
+      o.focal_px = ugv_camera_->params().fx;
+      added += camera_rotation_.Add({host.id, track_key[t].second, window[m]->id}, o) ? 1 : 0;
+    }
+  }
+  if (added == 0) return;
+  const Stopwatch solve;
+  const CameraRotationCalibrator::SolveResult s = camera_rotation_.Solve();
+  if (!s.updated) {
+    spdlog::debug("{} camera rotation: {}", agent_, s.reason);
+    return;
+  }
+  camera_correction_ = Pose::Identity();
+  camera_correction_.linear() = camera_rotation_.rotation();
+  const Eigen::AngleAxisd aa(camera_rotation_.rotation());
+  const Eigen::Vector3d deg = aa.axis() * aa.angle() * 180 / M_PI;
+  spdlog::debug(
+      "{} camera rotation: {} observations (+{}), solved in {:.1f} ms, rms {:.2f} -> {:.2f} px, "
+      "correction (camera xyz) {:+.3f} {:+.3f} {:+.3f} deg",
+      agent_, s.observations, added, solve.ElapsedMs(), s.initial_rms_px, s.final_rms_px, deg.x(),
+      deg.y(), deg.z());
 }
 
 EstimateResult AgentEstimator::Estimate(
@@ -298,6 +336,7 @@ EstimateResult AgentEstimator::Estimate(
     }
     // Observations: match each host's tracked keypoints against the other
     // window keyframes, keeping matches that reproject near the LiDAR point.
+    const Stopwatch tracking;
     std::map<int, std::vector<int>> tracks_by_host;
     for (size_t t = 0; t < tracks.size(); ++t)
       tracks_by_host[tracks[t].host_frame].push_back(static_cast<int>(t));
@@ -325,6 +364,8 @@ EstimateResult AgentEstimator::Estimate(
         }
       }
     }
+    r.timing.stage1_tracking_ms = tracking.ElapsedMs();
+    if (options_.camera_rotation.enabled) UpdateCameraRotation(window, tracks, track_key);
     std::vector<UgvWindowFrame> frames;
     frames.reserve(window.size());
     for (const auto& kf : window) {
@@ -332,7 +373,7 @@ EstimateResult AgentEstimator::Estimate(
     }
     const Stage1Result s1 = RunStage1(frames, tracks, options_.stage1);
     if (!s1.success) spdlog::debug("{} stage 1 skipped: {}", agent_, s1.reason);
-    if (s1.success && s1.anchored_to_map) {
+    if (s1.success && s1.anchored_to_map && !options_.camera_rotation.enabled) {
       // This window's correction (mean over its frames), fused into the
       // running one.
       Pose window_correction = Pose::Identity();

@@ -15,6 +15,7 @@
 #include "common/camera/camera.h"
 #include "common/types/keyframe.h"
 #include "ground_server/estimation/absolute_pose.h"
+#include "ground_server/estimation/camera_rotation.h"
 #include "ground_server/estimation/fix_gate.h"
 #include "ground_server/estimation/refinement.h"
 #include "ground_server/matching/descriptor_matcher.h"
@@ -62,9 +63,13 @@ struct EstimatorOptions {
   int min_inliers = 30;             ///< fewer inliers overall: no estimate
   bool use_stage1 = true;           ///< r_GC (UGV window BA); off for the ablation
   int stage1_extra_tracks = 100;  ///< map-plane points of the newest UGV keyframe added to stage 1
-  /// Stage-1 camera corrections are averaged over up to this many windows
-  /// (a running mean that then forgets slowly); 1 uses each window's own.
+  /// Without camera_rotation: stage-1 camera corrections are averaged over
+  /// up to this many windows (a running mean that then forgets slowly); 1
+  /// uses each window's own.
   int stage1_fusion_windows = 30;
+  /// Stage 1's run-long estimate of the UGV camera's rotation against the
+  /// LiDAR map, from every window's map-plane tracks (camera_rotation.h).
+  CameraRotationCalibrator::Options camera_rotation;
   /// Reported covariance = solver covariance + scatter of this many latest
   /// estimates (unmodelled, geometry-dependent errors).
   int scatter_window = 8;
@@ -92,6 +97,7 @@ struct EstimatorOptions {
     v("use_stage1", use_stage1);
     v("stage1_extra_tracks", stage1_extra_tracks);
     v("stage1_fusion_windows", stage1_fusion_windows);
+    v("camera_rotation", camera_rotation);
     v("scatter_window", scatter_window);
     v("bias_sigma_t_m", bias_sigma_t_m);
     v("bias_sigma_yaw_deg", bias_sigma_yaw_deg);
@@ -111,6 +117,7 @@ struct EstimateTiming {
   double matching_ms = 0;
   double ransac_ms = 0;
   double stage1_ms = 0;
+  double stage1_tracking_ms = 0;  ///< part of stage1_ms: UGV-UGV track matching
   double stage2_ms = 0;
   double total_ms = 0;
 };
@@ -156,6 +163,12 @@ class AgentEstimator {
   const FixGate& gate() const { return gate_; }
 
  private:
+  /// Feeds this window's map-plane tracks to camera_rotation_ and takes its
+  /// new estimate as the camera correction.
+  void UpdateCameraRotation(const std::deque<std::shared_ptr<const UgvKeyframe>>& window,
+                            const std::vector<UgvTrack>& tracks,
+                            const std::vector<std::pair<int, int>>& track_key);
+
   std::string agent_;
   EstimatorOptions options_;
   std::shared_ptr<const Camera> ugv_camera_;
@@ -167,6 +180,7 @@ class AgentEstimator {
   /// re-estimated from each short window alone.
   Pose camera_correction_ = Pose::Identity();
   int correction_windows_ = 0;
+  CameraRotationCalibrator camera_rotation_;
   std::deque<Eigen::Vector4d> recent_estimates_;  ///< (x, y, z, yaw) of the latest estimates
   /// Descriptor matches of a (UGV keyframe, UAV keyframe) pair, `a` being
   /// the UGV keypoint and `b` the UAV keypoint, kept while the UGV keyframe is in

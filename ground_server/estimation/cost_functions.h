@@ -15,8 +15,16 @@
 #include <Eigen/Geometry>
 
 #include "common/camera/camera.h"
+#include "ground_server/estimation/refinement.h"
 
 namespace ag {
+
+/// The robust loss of RobustLossOptions (nullptr for "none"); Ceres owns it.
+inline ceres::LossFunction* MakeLoss(const RobustLossOptions& o) {
+  if (o.type == "huber") return new ceres::HuberLoss(o.scale);
+  if (o.type == "cauchy") return new ceres::CauchyLoss(o.scale);
+  return nullptr;
+}
 
 /// Stage 1, eq. (r_GC): UGV reprojection of a map point in inverse-depth
 /// form. The point is anchored in its host keyframe h, where it was first
@@ -289,6 +297,69 @@ struct RelativePoseConsistencyError {
   Eigen::Vector3d t_ca_wg_;
   double inv_sigma_t_;
   double inv_sigma_yaw_;
+};
+
+/// Stage 1's run-long camera rotation (camera_rotation.h): a keypoint's ray
+/// in its host keyframe h, with the camera rotation correction R_d (angle-
+/// axis d, applied on the right of both LIO camera poses), is cut with the
+/// map plane (n, d0) and reprojected into the observing keyframe o:
+///   r_h = R_h R_d f_h,   s = -(n.t_h + d0) / (n.r_h),   p = t_h + s r_h,
+///   x_o = R_d^T R_o^T (p - t_o),
+///   r = (x_o[0:2] / x_o[2] - f_o) * focal / sigma_px.
+/// A wrong rotation moves the cut along the plane (far, at grazing rays),
+/// so the reprojection in o misses its match. Parameter: d (3).
+struct PlaneCutReprojectionError {
+  PlaneCutReprojectionError(const Eigen::Matrix3d& R_h, const Eigen::Vector3d& t_h,
+                            const Eigen::Vector2d& f_h, const Eigen::Vector4d& plane,
+                            const Eigen::Matrix3d& R_o, const Eigen::Vector3d& t_o,
+                            const Eigen::Vector2d& f_o, double scale)
+      : R_h_(R_h),
+        t_h_(t_h),
+        f_h_(f_h),
+        plane_(plane),
+        R_o_(R_o),
+        t_o_(t_o),
+        f_o_(f_o),
+        scale_(scale) {}
+
+  template <typename T>
+  bool operator()(const T* d, T* residual) const {
+    const Eigen::Matrix<T, 3, 1> f(T(f_h_.x()), T(f_h_.y()), T(1.0));
+    Eigen::Matrix<T, 3, 1> f_rotated;
+    ceres::AngleAxisRotatePoint(d, f.data(), f_rotated.data());
+    const Eigen::Matrix<T, 3, 1> ray = R_h_.cast<T>() * f_rotated;
+    const Eigen::Matrix<T, 3, 1> n = plane_.head<3>().cast<T>();
+    const T denom = n.dot(ray);
+    const T s = -(n.dot(t_h_.cast<T>()) + T(plane_[3])) / denom;
+    if (!(s > T(0.1))) return false;  // cut behind the camera: step rejected
+    const Eigen::Matrix<T, 3, 1> p = t_h_.cast<T>() + s * ray;
+    const Eigen::Matrix<T, 3, 1> x_nominal = R_o_.transpose().cast<T>() * (p - t_o_.cast<T>());
+    const T minus_d[3] = {-d[0], -d[1], -d[2]};
+    Eigen::Matrix<T, 3, 1> x;
+    ceres::AngleAxisRotatePoint(minus_d, x_nominal.data(), x.data());
+    if (!(x.z() > T(1e-3))) return false;
+    residual[0] = (x.x() / x.z() - T(f_o_.x())) * T(scale_);
+    residual[1] = (x.y() / x.z() - T(f_o_.y())) * T(scale_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Matrix3d& R_h, const Eigen::Vector3d& t_h,
+                                     const Eigen::Vector2d& f_h, const Eigen::Vector4d& plane,
+                                     const Eigen::Matrix3d& R_o, const Eigen::Vector3d& t_o,
+                                     const Eigen::Vector2d& f_o, double scale) {
+    return new ceres::AutoDiffCostFunction<PlaneCutReprojectionError, 2, 3>(
+        new PlaneCutReprojectionError(R_h, t_h, f_h, plane, R_o, t_o, f_o, scale));
+  }
+
+ private:
+  Eigen::Matrix3d R_h_;
+  Eigen::Vector3d t_h_;
+  Eigen::Vector2d f_h_;
+  Eigen::Vector4d plane_;
+  Eigen::Matrix3d R_o_;
+  Eigen::Vector3d t_o_;
+  Eigen::Vector2d f_o_;
+  double scale_;
 };
 
 }  // namespace ag

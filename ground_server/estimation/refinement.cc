@@ -13,12 +13,6 @@ namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
 
-ceres::LossFunction* MakeLoss(const RobustLossOptions& o) {
-  if (o.type == "huber") return new ceres::HuberLoss(o.scale);
-  if (o.type == "cauchy") return new ceres::CauchyLoss(o.scale);
-  return nullptr;
-}
-
 // A 6-DoF pose as the two parameter blocks the cost functions use.
 struct PoseBlock {
   std::array<double, 4> q;  // Eigen order x, y, z, w

@@ -184,6 +184,7 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
         report.timing.stage2.push_back(r.timing.stage2_ms);
         report.timing.matching.push_back(r.timing.matching_ms);
         report.timing.ransac.push_back(r.timing.ransac_ms);
+        report.timing.stage1_tracking.push_back(r.timing.stage1_tracking_ms);
         if (s.truth) {
           log.error = FourDofError(r.T_wa_wg, *s.truth);
           const std::optional<Pose> observable =

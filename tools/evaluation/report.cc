@@ -170,7 +170,8 @@ nlohmann::json MakeReport(const ReportInput& in) {
        StatsJson(ComputeStats(in.timing.depth_association_per_keyframe), false)},
       {"air_features_per_frame", StatsJson(ComputeStats(in.timing.air_features_per_frame), false)},
       {"matching", StatsJson(ComputeStats(in.timing.matching), false)},
-      {"ransac", StatsJson(ComputeStats(in.timing.ransac), false)}};
+      {"ransac", StatsJson(ComputeStats(in.timing.ransac), false)},
+      {"stage1_tracking", StatsJson(ComputeStats(in.timing.stage1_tracking), false)}};
   report["timing_ms"]["estimate"]["max"] = ComputeStats(in.timing.estimate).max;
   report["success"] = success && in.has_groundtruth;
   return report;

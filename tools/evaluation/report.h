@@ -54,7 +54,8 @@ struct AgentRecord {
 struct TimingRecord {
   std::vector<double> estimate, stage1, stage2, retrieval, depth_association_per_keyframe,
       air_features_per_frame;
-  std::vector<double> matching, ransac;  ///< beyond the spec: the rest of an estimate
+  std::vector<double> matching, ransac,
+      stage1_tracking;  ///< beyond the spec: the rest of an estimate
 };
 
 struct ReportInput {
