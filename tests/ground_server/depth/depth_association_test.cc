@@ -8,6 +8,7 @@
 #include <random>
 
 #include "tests/ground_server/depth/synthetic_scene.h"
+#include "tests/support/option_error.h"
 
 namespace ag {
 namespace {
@@ -295,12 +296,8 @@ TEST(DepthAssociationTest, SkippingMarchEqualsReferenceOnRandomScenes) {
 TEST(DepthAssociationTest, OptionsCheckNamesTheField) {
   DepthAssociator::Options options;
   options.max_range_m = options.min_range_m;
-  try {
-    DepthAssociator associator(Camera(Pinhole()), options);
-    FAIL() << "expected OptionError";
-  } catch (const OptionError& e) {
-    EXPECT_EQ(e.field(), "max_range_m");
-  }
+  test::ExpectOptionErrorNaming("max_range_m",
+                                [&] { DepthAssociator associator(Camera(Pinhole()), options); });
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 
 #include "common/core/error.h"
 #include "ground_server/estimation/cost_functions.h"
+#include "tests/support/option_error.h"
 #include "tests/support/synthetic_views.h"
 
 namespace ag {
@@ -172,12 +173,7 @@ TEST(CameraRotationCalibratorTest, CountsEachObservationOnceAndRejectsBadOnes) {
 TEST(CameraRotationCalibratorTest, BadOptionsNameTheKey) {
   CameraRotationCalibrator::Options o;
   o.prior_sigma_deg = 0;
-  try {
-    CameraRotationCalibrator c(o);
-    FAIL() << "expected OptionError";
-  } catch (const OptionError& e) {
-    EXPECT_NE(std::string(e.what()).find("prior_sigma_deg"), std::string::npos) << e.what();
-  }
+  test::ExpectOptionErrorNaming("prior_sigma_deg", [&] { CameraRotationCalibrator c(o); });
 }
 
 }  // namespace

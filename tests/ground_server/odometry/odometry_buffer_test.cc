@@ -7,6 +7,8 @@
 #include <limits>
 #include <thread>
 
+#include "tests/support/option_error.h"
+
 namespace ag {
 namespace {
 
@@ -180,12 +182,7 @@ TEST(OdometryBufferTest, ConcurrentAddAndLookupStayConsistent) {
 TEST(OdometryBufferTest, OptionsCheckNamesTheField) {
   OdometryBuffer::Options options;
   options.max_poses = 1;
-  try {
-    OdometryBuffer buffer(options);
-    FAIL() << "expected OptionError";
-  } catch (const OptionError& e) {
-    EXPECT_EQ(e.field(), "max_poses");
-  }
+  test::ExpectOptionErrorNaming("max_poses", [&] { OdometryBuffer buffer(options); });
 }
 
 }  // namespace

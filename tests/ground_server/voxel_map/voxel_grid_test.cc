@@ -10,6 +10,7 @@
 #include <unordered_map>
 
 #include "ground_server/voxel_map/voxel_hash_table.h"
+#include "tests/support/option_error.h"
 
 namespace ag {
 namespace {
@@ -337,12 +338,7 @@ TEST(VoxelGridTest, EmptyBlocksMatchTheirDefinitionThroughInsertAndEviction) {
 TEST(VoxelGridTest, OptionsCheckNamesTheField) {
   VoxelGrid::Options options;
   options.neighborhood = 9;
-  try {
-    VoxelGrid grid(options);
-    FAIL() << "expected OptionError";
-  } catch (const OptionError& e) {
-    EXPECT_EQ(e.field(), "neighborhood");
-  }
+  test::ExpectOptionErrorNaming("neighborhood", [&] { VoxelGrid grid(options); });
   options = VoxelGrid::Options();
   options.voxel_size_m = 0;
   EXPECT_THROW(VoxelGrid{options}, OptionError);
