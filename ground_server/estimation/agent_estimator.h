@@ -161,6 +161,9 @@ class AgentEstimator {
 
   const std::string& agent() const { return agent_; }
   const FixGate& gate() const { return gate_; }
+  /// The UGV camera's correction against the LiDAR map that stage 1 applies
+  /// (on the right of the LIO camera pose; identity until it has one).
+  const Pose& camera_correction() const { return camera_correction_; }
 
  private:
   /// Feeds this window's map-plane tracks to camera_rotation_ and takes its

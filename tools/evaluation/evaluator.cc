@@ -340,6 +340,29 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   }
   drain_pending();
 
+  // The camera's true correction against the LiDAR map: LIO tracks the
+  // LiDAR, so a LiDAR mounting error moves the reported body
+  // (T_off = T_b_l_true T_b_l_nominal^-1), and the camera pose from it is off
+  // by C = T_b_c_nominal^-1 T_off^-1 T_b_c_true.
+  if (dataset.groundtruth && dataset.groundtruth->ground_true_camera) {
+    Pose T_off = Pose::Identity();
+    if (dataset.groundtruth->ground_true_lidar && dataset.ground.calibration.lidar) {
+      T_off = dataset.groundtruth->ground_true_lidar->T_body_lidar *
+              dataset.ground.calibration.lidar->T_body_lidar.inverse();
+    }
+    const Eigen::Matrix3d C =
+        (dataset.ground.calibration.camera.T_body_camera.inverse() * T_off.inverse() *
+         dataset.groundtruth->ground_true_camera->T_body_camera)
+            .linear();
+    const auto angle_deg = [](const Eigen::Matrix3d& R) {
+      return Eigen::AngleAxisd(R).angle() * 180 / M_PI;
+    };
+    for (const auto& s : air) {
+      const Eigen::Matrix3d& R = s.estimator->camera_correction().linear();
+      report.agents[s.name].ugv_camera_rotation_error_deg =
+          std::make_pair(angle_deg(C), angle_deg(R.transpose() * C));
+    }
+  }
   result.agents = report.agents;
   result.report = MakeReport(report);
   return result;

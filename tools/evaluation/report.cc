@@ -151,6 +151,10 @@ nlohmann::json MakeReport(const ReportInput& in) {
       a["false_fixes"] = in.has_groundtruth ? nlohmann::json(0) : nlohmann::json(nullptr);
       success = false;
     }
+    if (rec.ugv_camera_rotation_error_deg) {
+      a["ugv_camera_rotation_error_deg"] = {{"nominal", rec.ugv_camera_rotation_error_deg->first},
+                                            {"stage1", rec.ugv_camera_rotation_error_deg->second}};
+    }
     if (!rec.fixes.empty()) {
       const Pose& T = rec.fixes.back().T_wa_wg;
       a["final_T_wa_wg"] = {{"x", T.translation().x()},

@@ -48,6 +48,10 @@ struct AgentRecord {
     std::optional<PoseError> drift_free_error;
   };
   std::vector<Fix> fixes;  ///< published fixes only
+  /// Rotation error (deg) of the UGV camera against the LiDAR map at the
+  /// nominal calibration and after this agent's stage-1 correction, at the
+  /// end of the run; when the dataset has the true calibrations.
+  std::optional<std::pair<double, double>> ugv_camera_rotation_error_deg;
 };
 
 /// Wall-clock samples, in ms.
