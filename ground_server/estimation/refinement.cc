@@ -129,7 +129,6 @@ Stage1Result RunStage1(const std::vector<UgvWindowFrame>& frames,
       problem.AddResidualBlock(DepthPriorError::Create(track.lidar_depth, options.depth_sigma_m),
                                nullptr, &rho[k]);
     }
-    problem.SetParameterLowerBound(&rho[k], 0, 1e-3);  // at most 1 km
   }
   if (observations == 0) {
     result.reason = "no UGV track is seen by two keyframes of the window";
