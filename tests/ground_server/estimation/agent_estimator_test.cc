@@ -144,6 +144,9 @@ TEST_F(AgentEstimatorTest, RecoversTransformAndPublishesAfterConfirmation) {
   const EstimateResult first = estimator.Estimate(0, window_, source_);
   ASSERT_TRUE(first.success) << first.reason;
   EXPECT_FALSE(first.gate.publish) << "a first estimate waits for confirmation";
+  const EstimateResult confirming = estimator.Estimate(500000000LL, window_, source_);
+  ASSERT_TRUE(confirming.success) << confirming.reason;
+  EXPECT_FALSE(confirming.gate.publish) << "a first fix needs three agreeing estimates";
   const EstimateResult second = estimator.Estimate(1000000000LL, window_, source_);
   ASSERT_TRUE(second.success) << second.reason;
   EXPECT_TRUE(second.gate.publish);

@@ -13,17 +13,21 @@ TEST(FixGateTest, FirstFixNeedsConfirmation) {
   auto d = gate.Offer(0, T);
   EXPECT_FALSE(d.publish);
   EXPECT_EQ(d.status, FixStatus::kInitializing);
-  EXPECT_NE(d.reason.find("1/2"), std::string::npos);
+  EXPECT_NE(d.reason.find("1/3"), std::string::npos) << d.reason;
   d = gate.Offer(1 * kS, MakePose4Dof(1.05, 2, 3, 0.51));
+  EXPECT_FALSE(d.publish) << "two estimates in a row share most of their data";
+  EXPECT_NE(d.reason.find("2/3"), std::string::npos) << d.reason;
+  d = gate.Offer(2 * kS, MakePose4Dof(1.03, 2, 3, 0.5));
   EXPECT_TRUE(d.publish);
   EXPECT_EQ(d.status, FixStatus::kTracking);
   // Close estimates publish at once.
-  EXPECT_TRUE(gate.Offer(2 * kS, MakePose4Dof(1.02, 2, 3, 0.5)).publish);
+  EXPECT_TRUE(gate.Offer(3 * kS, MakePose4Dof(1.02, 2, 3, 0.5)).publish);
 }
 
 TEST(FixGateTest, SingleOutlierIsNeverPublished) {
   FixGate gate({});
   const Pose good = MakePose4Dof(1, 2, 3, 0.5);
+  gate.Offer(-kS, good);
   gate.Offer(0, good);
   ASSERT_TRUE(gate.Offer(kS, good).publish);
   // An aliased estimate 5 m away, then good ones again.
@@ -40,8 +44,9 @@ TEST(FixGateTest, SingleOutlierIsNeverPublished) {
 
 TEST(FixGateTest, ConfirmedJumpReplacesTheFix) {
   FixGate gate({});
+  gate.Offer(-kS, MakePose4Dof(0, 0, 0, 0));
   gate.Offer(0, MakePose4Dof(0, 0, 0, 0));
-  gate.Offer(kS, MakePose4Dof(0, 0, 0, 0));
+  ASSERT_TRUE(gate.Offer(kS, MakePose4Dof(0, 0, 0, 0)).publish);
   EXPECT_FALSE(gate.Offer(2 * kS, MakePose4Dof(2, 0, 0, 0)).publish);
   const auto second = gate.Offer(3 * kS, MakePose4Dof(2, 0, 0, 0.01));
   EXPECT_FALSE(second.publish) << "a jump needs jump_confirmations (3)";
@@ -55,6 +60,7 @@ TEST(FixGateTest, TwoWrongEstimatesInARowDoNotReplaceAFix) {
   // row, then estimates that disagree with it, then good ones again.
   FixGate gate({});
   const Pose good = MakePose4Dof(0, 0, 0, 0);
+  gate.Offer(-kS, good);
   gate.Offer(0, good);
   ASSERT_TRUE(gate.Offer(kS, good).publish);
   EXPECT_FALSE(gate.Offer(2 * kS, MakePose4Dof(2.5, 0, 0, 0.07)).publish);
@@ -68,12 +74,14 @@ TEST(FixGateTest, LostAfterTimeoutAndReacquiredWithConfirmation) {
   FixGate::Options o;
   o.lost_after_s = 5;
   FixGate gate(o);
+  gate.Offer(-kS, Pose::Identity());
   gate.Offer(0, Pose::Identity());
-  gate.Offer(kS, Pose::Identity());
+  ASSERT_TRUE(gate.Offer(kS, Pose::Identity()).publish);
   EXPECT_EQ(gate.Failed(3 * kS).status, FixStatus::kTracking);
   EXPECT_EQ(gate.Failed(7 * kS).status, FixStatus::kLost);
   EXPECT_FALSE(gate.Offer(8 * kS, Pose::Identity()).publish) << "re-acquisition is confirmed";
-  EXPECT_TRUE(gate.Offer(9 * kS, Pose::Identity()).publish);
+  EXPECT_FALSE(gate.Offer(9 * kS, Pose::Identity()).publish);
+  EXPECT_TRUE(gate.Offer(10 * kS, Pose::Identity()).publish);
   EXPECT_EQ(gate.status(), FixStatus::kTracking);
 }
 

@@ -40,7 +40,7 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
   const nlohmann::json& agent = result.report["agents"]["uav1"];
   SCOPED_TRACE(agent.dump(1));
 
-  // Keyframes at 1 Hz, a fix after two agreeing estimates: from ~3 s on.
+  // Keyframes at 1 Hz, a fix after three agreeing estimates: from ~4 s on.
   EXPECT_GE(agent["fixes"].get<int>(), 4);
   EXPECT_EQ(agent["false_fixes"].get<int>(), 0);
   // Stage 1's run-long camera rotation: the UGV camera is ~1 deg and 15 ms
