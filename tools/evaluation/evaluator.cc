@@ -29,21 +29,27 @@ std::optional<Pose> OdometryWorldInTrueWorld(const AgentData& agent, int64_t t_n
   return ProjectTo4Dof(truth.T * body_offset * odom.T.inverse());
 }
 
+/// What LIO's reported body is off by when the LiDAR's true mounting differs
+/// from the nominal one: T_b_l_true T_b_l_nominal^-1 (LIO tracks the LiDAR);
+/// identity without the true calibration.
+Pose LidarMountOffset(const Dataset& dataset) {
+  if (!dataset.groundtruth || !dataset.groundtruth->ground_true_lidar ||
+      !dataset.ground.calibration.lidar) {
+    return Pose::Identity();
+  }
+  return dataset.groundtruth->ground_true_lidar->T_body_lidar *
+         dataset.ground.calibration.lidar->T_body_lidar.inverse();
+}
+
 /// The relation between the two odometry worlds when the estimate was made
 /// (UAV keyframe at t_air, air clock; UGV at t_ground): the true T_wa_wg with
 /// both agents' odometry drift applied. No estimator can do better than this
 /// from odometry-world data; the difference to groundtruth.yaml is drift.
 std::optional<Pose> ObservableTruth(const Dataset& dataset, const AgentData& air, int64_t t_air,
                                     int64_t t_ground, const Pose& T_wa_wg) {
-  Pose lidar_offset = Pose::Identity();
-  if (dataset.groundtruth && dataset.groundtruth->ground_true_lidar &&
-      dataset.ground.calibration.lidar) {
-    lidar_offset = dataset.groundtruth->ground_true_lidar->T_body_lidar *
-                   dataset.ground.calibration.lidar->T_body_lidar.inverse();
-  }
   const std::optional<Pose> T_wa_oa = OdometryWorldInTrueWorld(air, t_air);
   const std::optional<Pose> T_wg_og =
-      OdometryWorldInTrueWorld(dataset.ground, t_ground, lidar_offset);
+      OdometryWorldInTrueWorld(dataset.ground, t_ground, LidarMountOffset(dataset));
   if (!T_wa_oa || !T_wg_og) return std::nullopt;
   return ProjectTo4Dof(T_wa_oa->inverse() * T_wa_wg * *T_wg_og);
 }
@@ -340,16 +346,11 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   }
   drain_pending();
 
-  // The camera's true correction against the LiDAR map: LIO tracks the
-  // LiDAR, so a LiDAR mounting error moves the reported body
-  // (T_off = T_b_l_true T_b_l_nominal^-1), and the camera pose from it is off
-  // by C = T_b_c_nominal^-1 T_off^-1 T_b_c_true.
+  // The camera's true correction against the LiDAR map: a LiDAR mounting
+  // error moves LIO's reported body by T_off (LidarMountOffset), and the
+  // camera pose from it is off by C = T_b_c_nominal^-1 T_off^-1 T_b_c_true.
   if (dataset.groundtruth && dataset.groundtruth->ground_true_camera) {
-    Pose T_off = Pose::Identity();
-    if (dataset.groundtruth->ground_true_lidar && dataset.ground.calibration.lidar) {
-      T_off = dataset.groundtruth->ground_true_lidar->T_body_lidar *
-              dataset.ground.calibration.lidar->T_body_lidar.inverse();
-    }
+    const Pose T_off = LidarMountOffset(dataset);
     const Eigen::Matrix3d C =
         (dataset.ground.calibration.camera.T_body_camera.inverse() * T_off.inverse() *
          dataset.groundtruth->ground_true_camera->T_body_camera)
