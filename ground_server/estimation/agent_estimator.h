@@ -178,9 +178,9 @@ class AgentEstimator {
   std::map<std::string, std::shared_ptr<const Camera>> air_cameras_;
   FixGate gate_;
   /// The UGV camera's pose correction against the LiDAR map (camera frame,
-  /// T_c_lio_c), fused over stage-1 windows: the extrinsic and time-offset
-  /// error it absorbs is nearly constant, so it is averaged rather than
-  /// re-estimated from each short window alone.
+  /// T_c_lio_c). The extrinsic error it absorbs is constant, so it is
+  /// estimated over the run: by camera_rotation_ (default), or else as the
+  /// running mean of stage-1 window corrections (correction_windows_).
   Pose camera_correction_ = Pose::Identity();
   int correction_windows_ = 0;
   CameraRotationCalibrator camera_rotation_;
