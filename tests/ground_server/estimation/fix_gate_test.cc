@@ -7,6 +7,14 @@ namespace {
 
 constexpr int64_t kS = 1000000000LL;
 
+// A first fix with the default gate: T offered at t - 2 s, t - 1 s and t,
+// the third publishing.
+void Acquire(FixGate* gate, const Pose& T, int64_t t_ns) {
+  gate->Offer(t_ns - 2 * kS, T);
+  gate->Offer(t_ns - kS, T);
+  ASSERT_TRUE(gate->Offer(t_ns, T).publish);
+}
+
 TEST(FixGateTest, FirstFixNeedsConfirmation) {
   FixGate gate({});
   const Pose T = MakePose4Dof(1, 2, 3, 0.5);
@@ -27,9 +35,7 @@ TEST(FixGateTest, FirstFixNeedsConfirmation) {
 TEST(FixGateTest, SingleOutlierIsNeverPublished) {
   FixGate gate({});
   const Pose good = MakePose4Dof(1, 2, 3, 0.5);
-  gate.Offer(-kS, good);
-  gate.Offer(0, good);
-  ASSERT_TRUE(gate.Offer(kS, good).publish);
+  Acquire(&gate, good, kS);
   // An aliased estimate 5 m away, then good ones again.
   EXPECT_FALSE(gate.Offer(2 * kS, MakePose4Dof(6, 2, 3, 0.5)).publish);
   EXPECT_TRUE(gate.fix()->translation().isApprox(good.translation()));
@@ -44,9 +50,7 @@ TEST(FixGateTest, SingleOutlierIsNeverPublished) {
 
 TEST(FixGateTest, ConfirmedJumpReplacesTheFix) {
   FixGate gate({});
-  gate.Offer(-kS, MakePose4Dof(0, 0, 0, 0));
-  gate.Offer(0, MakePose4Dof(0, 0, 0, 0));
-  ASSERT_TRUE(gate.Offer(kS, MakePose4Dof(0, 0, 0, 0)).publish);
+  Acquire(&gate, MakePose4Dof(0, 0, 0, 0), kS);
   EXPECT_FALSE(gate.Offer(2 * kS, MakePose4Dof(2, 0, 0, 0)).publish);
   const auto second = gate.Offer(3 * kS, MakePose4Dof(2, 0, 0, 0.01));
   EXPECT_FALSE(second.publish) << "a jump needs jump_confirmations (3)";
@@ -60,9 +64,7 @@ TEST(FixGateTest, TwoWrongEstimatesInARowDoNotReplaceAFix) {
   // row, then estimates that disagree with it, then good ones again.
   FixGate gate({});
   const Pose good = MakePose4Dof(0, 0, 0, 0);
-  gate.Offer(-kS, good);
-  gate.Offer(0, good);
-  ASSERT_TRUE(gate.Offer(kS, good).publish);
+  Acquire(&gate, good, kS);
   EXPECT_FALSE(gate.Offer(2 * kS, MakePose4Dof(2.5, 0, 0, 0.07)).publish);
   EXPECT_FALSE(gate.Offer(3 * kS, MakePose4Dof(2.7, 0, 0, 0.08)).publish);
   EXPECT_FALSE(gate.Offer(4 * kS, MakePose4Dof(1.0, 0, 0, 0.03)).publish);
@@ -74,9 +76,7 @@ TEST(FixGateTest, LostAfterTimeoutAndReacquiredWithConfirmation) {
   FixGate::Options o;
   o.lost_after_s = 5;
   FixGate gate(o);
-  gate.Offer(-kS, Pose::Identity());
-  gate.Offer(0, Pose::Identity());
-  ASSERT_TRUE(gate.Offer(kS, Pose::Identity()).publish);
+  Acquire(&gate, Pose::Identity(), kS);
   EXPECT_EQ(gate.Failed(3 * kS).status, FixStatus::kTracking);
   EXPECT_EQ(gate.Failed(7 * kS).status, FixStatus::kLost);
   EXPECT_FALSE(gate.Offer(8 * kS, Pose::Identity()).publish) << "re-acquisition is confirmed";
