@@ -5,6 +5,7 @@
 // seconds. Used inside private network
 // namespaces only (tests never send LCM traffic outside the machine).
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -45,7 +46,9 @@ int main(int argc, char** argv) {
       ++*received;
     }
   } handler{out_dir, &received, &per_channel, &index};
-  lcm.subscribe(pattern, &Handler::On, &handler);
+  // LCM keeps 30 messages per subscription by default; a burst (the parts of a
+  // split keyframe) arrives faster than files are written, and none may be lost.
+  lcm.subscribe(pattern, &Handler::On, &handler)->setQueueCapacity(std::max(count, 30));
   // Tell the parent we are subscribed (it starts the sender after this).
   std::ofstream(out_dir + "/READY") << "ok\n";
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
