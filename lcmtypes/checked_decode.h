@@ -93,7 +93,7 @@ inline bool ScanBody(LcmShapeScanner& s, const aglcm::air_keyframe_t* /*type*/) 
   int32_t num_keypoints = 0;
   int32_t num_scores = 0;
   return s.String()                                                 // agent
-         && s.Skip(8 + 8)                                           // seq, t_ns
+         && s.Skip(8 + 2 + 2 + 8)                                   // seq, part, num_parts, t_ns
          && s.String()                                              // camera_id
          && s.Skip(3 * 8 + 4 * 8)                                   // position, orientation
          && s.String()                                              // descriptor_type

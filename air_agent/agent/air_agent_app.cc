@@ -70,9 +70,11 @@ void AirAgentApp::Publish(int64_t t_camera_ns, const AirFrontend::Output& out) {
     stats_.bytes_ip += b.ip;
   }
   if (!out.keyframe) return;
-  impl_->lcm->publish(impl_->frontend->channel(), &out.packet);
+  for (const aglcm::air_keyframe_t& packet : out.packets) {
+    impl_->lcm->publish(impl_->frontend->channel(), &packet);
+  }
   ++stats_.keyframes;
-  stats_.keypoints += out.packet.num_keypoints;
+  stats_.keypoints += out.keypoints;
   stats_.bytes_lcm += out.link.lcm_udp;
   stats_.bytes_ip += out.link.ip;
 }

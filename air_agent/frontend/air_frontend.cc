@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 
 #include "common/core/agent_name.h"
 #include "common/wire/channels.h"
@@ -14,6 +15,7 @@ void AirFrontend::Options::Check() const {
               "must be float32, float16, int8 or bits4; got '" + global_encoding + "'");
   CheckOption(mtu >= 576 && mtu <= 65535, "mtu", "must be in [576, 65535]");
   CheckOption(camera_info_period_s > 0, "camera_info_period_s", "must be > 0");
+  CheckOption(max_part_bytes >= 0, "max_part_bytes", "must be >= 0 (0: keyframes are not split)");
 }
 
 AirFrontend::AirFrontend(std::string agent, const Options& options,
@@ -28,14 +30,7 @@ AirFrontend::AirFrontend(std::string agent, const Options& options,
       selector_(options.keyframes),
       governor_(options.governor,
                 [this](int keypoints, ArrayEncoding encoding) {
-                  PacketFormat f;
-                  f.descriptors = encoding;
-                  f.global = global_encoding_;
-                  f.scores = options_.send_scores;
-                  const int64_t size =
-                      EncodedKeyframeSize(agent_, options_.camera_id, features_->type(), keypoints,
-                                          features_->descriptor_dim(), global_->dim(), f);
-                  return LcmLinkBytes(channel_, size, options_.mtu).ip;
+                  return KeyframeLinkBytes(keypoints, encoding);
                 }),
       global_encoding_(
           ParseArrayEncoding(options.global_encoding).value_or(ArrayEncoding::kFloat16)) {
@@ -44,8 +39,49 @@ AirFrontend::AirFrontend(std::string agent, const Options& options,
     throw OptionError("agent", "'" + agent_ + "' is not a valid agent name ([a-z0-9_]+)");
   }
   Camera check(calibration.camera);  // throws naming the bad field
+  if (options_.max_part_bytes > 0) {
+    const auto fits = [this](int64_t size) {
+      return LcmLinkBytes(channel_, size, options_.mtu).ip <= options_.max_part_bytes;
+    };
+    for (ArrayEncoding e : governor_.encodings()) {
+      try {
+        part_capacity_[e] = FitPartCapacity(agent_, options_.camera_id, features_->type(),
+                                            features_->descriptor_dim(), global_->dim(),
+                                            Format(0, e), options_.governor.max_keypoints, fits);
+      } catch (const std::invalid_argument& error) {
+        throw OptionError("max_part_bytes", std::to_string(options_.max_part_bytes) +
+                                                " IPv4 bytes is too small: " + error.what());
+      }
+    }
+  }
   governor_.SetReserve(
       LcmLinkBytes(AirCameraInfoChannel(agent_), CameraInfo(0).getEncodedSize(), options_.mtu).ip);
+}
+
+PacketFormat AirFrontend::Format(int keypoints, ArrayEncoding descriptors) const {
+  PacketFormat f;
+  f.max_keypoints = keypoints;
+  f.descriptors = descriptors;
+  f.global = global_encoding_;
+  f.scores = options_.send_scores;
+  return f;
+}
+
+int64_t AirFrontend::KeyframeLinkBytes(int keypoints, ArrayEncoding descriptors) const {
+  const PacketFormat f = Format(keypoints, descriptors);
+  if (options_.max_part_bytes == 0) {
+    const int64_t size =
+        EncodedKeyframeSize(agent_, options_.camera_id, features_->type(), keypoints,
+                            features_->descriptor_dim(), global_->dim(), f);
+    return LcmLinkBytes(channel_, size, options_.mtu).ip;
+  }
+  int64_t ip = 0;
+  for (int64_t size : EncodedPartSizes(agent_, options_.camera_id, features_->type(), keypoints,
+                                       features_->descriptor_dim(), global_->dim(), f,
+                                       part_capacity_.at(descriptors))) {
+    ip += LcmLinkBytes(channel_, size, options_.mtu).ip;
+  }
+  return ip;
 }
 
 int64_t AirFrontend::BodyTimeNs(int64_t t_camera_ns) const {
@@ -80,14 +116,22 @@ AirFrontend::Output AirFrontend::ProcessFrame(int64_t t_camera_ns,
     out.skipped = true;
     return out;
   }
-  PacketFormat format;
-  format.max_keypoints = plan.keypoints;
-  format.descriptors = plan.encoding;
-  format.global = global_encoding_;
-  format.scores = options_.send_scores;
-  out.packet = EncodeKeyframe(kf, format);
-  out.encoded_bytes = out.packet.getEncodedSize();
-  out.link = LcmLinkBytes(channel_, out.encoded_bytes, options_.mtu);
+  const PacketFormat format = Format(plan.keypoints, plan.encoding);
+  if (options_.max_part_bytes > 0) {
+    out.packets = EncodeKeyframeParts(kf, format, part_capacity_.at(plan.encoding));
+  } else {
+    out.packets = {EncodeKeyframe(kf, format)};
+  }
+  for (const aglcm::air_keyframe_t& p : out.packets) {
+    const int64_t size = p.getEncodedSize();
+    const LinkBytes b = LcmLinkBytes(channel_, size, options_.mtu);
+    out.keypoints += p.num_keypoints;
+    out.encoded_bytes += size;
+    out.link.payload += b.payload;
+    out.link.lcm_udp += b.lcm_udp;
+    out.link.datagrams += b.datagrams;
+    out.link.ip += b.ip;
+  }
   if (!governor_.TryConsume(t_camera_ns, out.link.ip)) {
     // The plan's size model and the packet disagree: never exceed the budget.
     selector_.Reject();

@@ -6,8 +6,10 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "air_agent/governor/bandwidth_governor.h"
 #include "air_agent/keyframe/keyframe_selector.h"
@@ -30,6 +32,11 @@ class AirFrontend {
     std::string global_encoding = "float16";  ///< float32, float16, int8, bits4
     bool send_scores = false;                 ///< 1 byte per keypoint more
     int mtu = 1500;                           ///< for the link byte count (bytes)
+    /// Split each keyframe into parts of at most this many IPv4 bytes on the
+    /// link (0: one message per keyframe). At the MTU each part is one IP
+    /// packet, so a packet lost on the radio costs that part's keypoints
+    /// instead of the whole keyframe (air_keyframe_t.lcm).
+    int64_t max_part_bytes = 0;
     double camera_info_period_s = 5.0;        ///< camera_info resent this often (s)
 
     template <class V>
@@ -40,17 +47,20 @@ class AirFrontend {
       v("global_encoding", global_encoding);
       v("send_scores", send_scores);
       v("mtu", mtu);
+      v("max_part_bytes", max_part_bytes);
       v("camera_info_period_s", camera_info_period_s);
     }
     void Check() const;
   };
 
   struct Output {
-    bool keyframe = false;  ///< a packet was produced
+    bool keyframe = false;  ///< packets were produced
     bool skipped = false;   ///< a keyframe was due but the budget had no room
-    aglcm::air_keyframe_t packet;
-    int64_t encoded_bytes = 0;  ///< LCM message size
-    LinkBytes link;             ///< what it costs on the link
+    /// The keyframe's messages, to publish in order: one, or its parts.
+    std::vector<aglcm::air_keyframe_t> packets;
+    int keypoints = 0;          ///< keypoints sent, all parts together
+    int64_t encoded_bytes = 0;  ///< LCM message sizes, summed over the packets
+    LinkBytes link;             ///< what they cost on the link, summed
     std::string gave_up;        ///< what the governor gave up, if anything
     double features_ms = 0;     ///< local + global descriptor time
   };
@@ -98,6 +108,12 @@ class AirFrontend {
   ArrayEncoding global_encoding_;
   int64_t seq_ = 0;
   std::optional<int64_t> last_camera_info_ns_;
+  /// Part capacity per descriptor encoding, when keyframes are split.
+  std::map<ArrayEncoding, PartCapacity> part_capacity_;
+
+  PacketFormat Format(int keypoints, ArrayEncoding descriptors) const;
+  /// Link bytes of a keyframe with `keypoints` keypoints in `descriptors`.
+  int64_t KeyframeLinkBytes(int keypoints, ArrayEncoding descriptors) const;
 };
 
 }  // namespace ag

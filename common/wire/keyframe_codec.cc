@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <opencv2/core.hpp>
+#include <stdexcept>
 
 #include "common/core/agent_name.h"
 
@@ -224,10 +226,21 @@ bool DequantizeArray(const aglcm::quantized_array_t& a, cv::Mat* values, std::st
   return true;
 }
 
-aglcm::air_keyframe_t EncodeKeyframe(const AirKeyframe& kf, const PacketFormat& format) {
+namespace {
+
+/// Whether part `part` of `num_parts` carries the global descriptor: the first
+/// and the last, so that a keyframe stays retrievable unless both are lost.
+bool CarriesGlobal(int part, int num_parts) { return part == 0 || part == num_parts - 1; }
+
+/// One packet with keypoints [first, first + count) of `kf`, as part `part`
+/// of `num_parts`.
+aglcm::air_keyframe_t EncodePart(const AirKeyframe& kf, const PacketFormat& format, int first,
+                                 int count, int part, int num_parts) {
   aglcm::air_keyframe_t p;
   p.agent = kf.agent;
   p.seq = kf.seq;
+  p.part = static_cast<int16_t>(part);
+  p.num_parts = static_cast<int16_t>(num_parts);
   p.t_ns = kf.t_ns;
   p.camera_id = kf.camera_id;
   const Eigen::Vector3d t = kf.T_wa_c.translation();
@@ -238,13 +251,15 @@ aglcm::air_keyframe_t EncodeKeyframe(const AirKeyframe& kf, const PacketFormat& 
   p.orientation[2] = q.y();
   p.orientation[3] = q.z();
   p.descriptor_type = kf.features.descriptor_type;
-  const cv::Mat global(1, static_cast<int>(kf.global_descriptor.size()), CV_32F,
-                       const_cast<float*>(kf.global_descriptor.data()));
+  const cv::Mat global = CarriesGlobal(part, num_parts)
+                             ? cv::Mat(1, static_cast<int>(kf.global_descriptor.size()), CV_32F,
+                                       const_cast<float*>(kf.global_descriptor.data()))
+                             : cv::Mat(0, 0, CV_32F);
   p.global_descriptor = QuantizeArray(global, format.global);
 
-  const int n = std::min<int>(format.max_keypoints, static_cast<int>(kf.features.size()));
+  const int n = count;
   float max_coord = 1.0f;
-  for (int i = 0; i < n; ++i) {
+  for (int i = first; i < first + n; ++i) {
     max_coord = std::max({max_coord, std::abs(kf.features.keypoints[i].x()),
                           std::abs(kf.features.keypoints[i].y())});
   }
@@ -258,25 +273,27 @@ aglcm::air_keyframe_t EncodeKeyframe(const AirKeyframe& kf, const PacketFormat& 
   p.kp_y.resize(n);
   const float unit = static_cast<float>(1 << frac_bits);
   for (int i = 0; i < n; ++i) {
-    p.kp_x[i] = static_cast<int16_t>(std::lround(kf.features.keypoints[i].x() * unit));
-    p.kp_y[i] = static_cast<int16_t>(std::lround(kf.features.keypoints[i].y() * unit));
+    p.kp_x[i] = static_cast<int16_t>(std::lround(kf.features.keypoints[first + i].x() * unit));
+    p.kp_y[i] = static_cast<int16_t>(std::lround(kf.features.keypoints[first + i].y() * unit));
   }
-  const bool scores = format.scores && static_cast<int>(kf.features.scores.size()) >= n;
+  const bool scores = format.scores && static_cast<int>(kf.features.scores.size()) >= first + n;
   p.num_scores = scores ? n : 0;
   p.scores.resize(p.num_scores);
   for (int i = 0; i < p.num_scores; ++i) {
-    p.scores[i] =
-        static_cast<uint8_t>(std::clamp<long>(std::lround(255.0f * kf.features.scores[i]), 0, 255));
+    p.scores[i] = static_cast<uint8_t>(
+        std::clamp<long>(std::lround(255.0f * kf.features.scores[first + i]), 0, 255));
   }
-  const cv::Mat desc = kf.features.descriptors.empty() ? cv::Mat(0, 0, CV_32F)
-                                                       : kf.features.descriptors.rowRange(0, n);
+  const cv::Mat desc = kf.features.descriptors.empty() || n == 0
+                           ? cv::Mat(0, 0, CV_32F)
+                           : kf.features.descriptors.rowRange(first, first + n);
   p.descriptors = QuantizeArray(desc, format.descriptors);
   return p;
 }
 
-int64_t EncodedKeyframeSize(const std::string& agent, const std::string& camera_id,
-                            const std::string& descriptor_type, int keypoints, int dim,
-                            int global_dim, const PacketFormat& format) {
+/// A keyframe of the given shape with zero content, for size computations.
+AirKeyframe ShapeKeyframe(const std::string& agent, const std::string& camera_id,
+                          const std::string& descriptor_type, int keypoints, int dim,
+                          int global_dim) {
   AirKeyframe shape;
   shape.agent = agent;
   shape.camera_id = camera_id;
@@ -285,9 +302,102 @@ int64_t EncodedKeyframeSize(const std::string& agent, const std::string& camera_
   shape.features.scores.assign(keypoints, 0.0f);
   shape.features.descriptors = cv::Mat::zeros(keypoints, dim, CV_32F);
   shape.global_descriptor.assign(global_dim, 0.0f);
-  PacketFormat f = format;
-  f.max_keypoints = keypoints;
-  return EncodeKeyframe(shape, f).getEncodedSize();
+  return shape;
+}
+
+int SentKeypoints(const AirKeyframe& kf, const PacketFormat& format) {
+  return std::max(0, std::min<int>(format.max_keypoints, static_cast<int>(kf.features.size())));
+}
+
+}  // namespace
+
+aglcm::air_keyframe_t EncodeKeyframe(const AirKeyframe& kf, const PacketFormat& format) {
+  return EncodePart(kf, format, 0, SentKeypoints(kf, format), 0, 1);
+}
+
+int64_t EncodedKeyframeSize(const std::string& agent, const std::string& camera_id,
+                            const std::string& descriptor_type, int keypoints, int dim,
+                            int global_dim, const PacketFormat& format) {
+  const AirKeyframe shape =
+      ShapeKeyframe(agent, camera_id, descriptor_type, keypoints, dim, global_dim);
+  return EncodePart(shape, format, 0, keypoints, 0, 1).getEncodedSize();
+}
+
+std::vector<int> PartKeypointCounts(int keypoints, const PartCapacity& capacity) {
+  std::vector<int> counts{std::min(keypoints, capacity.first)};
+  int left = keypoints - counts[0];
+  // Middle parts leave at most `first` for the last part (it has the global
+  // descriptor too).
+  while (left > capacity.first && capacity.rest > 0) {
+    counts.push_back(std::min(capacity.rest, left - capacity.first));
+    left -= counts.back();
+  }
+  if (left > 0) counts.push_back(left);
+  return counts;
+}
+
+PartCapacity FitPartCapacity(const std::string& agent, const std::string& camera_id,
+                             const std::string& descriptor_type, int dim, int global_dim,
+                             const PacketFormat& format, int max_keypoints,
+                             const std::function<bool(int64_t)>& fits) {
+  const AirKeyframe shape =
+      ShapeKeyframe(agent, camera_id, descriptor_type, max_keypoints, dim, global_dim);
+  // Largest k in [lo, max_keypoints] whose part fits (size grows with k).
+  const auto largest = [&](bool with_global, int lo) {
+    int hi = max_keypoints;
+    while (lo < hi) {
+      const int mid = lo + (hi - lo + 1) / 2;
+      if (fits(EncodePart(shape, format, 0, mid, with_global ? 0 : 1, 3).getEncodedSize())) {
+        lo = mid;
+      } else {
+        hi = mid - 1;
+      }
+    }
+    return lo;
+  };
+  const int64_t first_min = EncodePart(shape, format, 0, 0, 0, 3).getEncodedSize();
+  const int64_t rest_min = EncodePart(shape, format, 0, 1, 1, 3).getEncodedSize();
+  if (!fits(first_min) || !fits(rest_min)) {
+    throw std::invalid_argument("a keyframe part must hold at least " + std::to_string(first_min) +
+                                " encoded bytes (pose and global descriptor) and " +
+                                std::to_string(rest_min) + " (pose and one keypoint)");
+  }
+  return {largest(true, 0), largest(false, 1)};
+}
+
+std::vector<int64_t> EncodedPartSizes(const std::string& agent, const std::string& camera_id,
+                                      const std::string& descriptor_type, int keypoints, int dim,
+                                      int global_dim, const PacketFormat& format,
+                                      const PartCapacity& capacity) {
+  const std::vector<int> counts = PartKeypointCounts(keypoints, capacity);
+  const int largest = *std::max_element(counts.begin(), counts.end());
+  const AirKeyframe shape =
+      ShapeKeyframe(agent, camera_id, descriptor_type, largest, dim, global_dim);
+  std::vector<int64_t> sizes;
+  for (size_t i = 0; i < counts.size(); ++i) {
+    const int part = static_cast<int>(i);
+    const int num_parts = static_cast<int>(counts.size());
+    sizes.push_back(EncodePart(shape, format, 0, counts[i], part, num_parts).getEncodedSize());
+  }
+  return sizes;
+}
+
+std::vector<aglcm::air_keyframe_t> EncodeKeyframeParts(const AirKeyframe& kf,
+                                                       const PacketFormat& format,
+                                                       const PartCapacity& capacity) {
+  const std::vector<int> counts = PartKeypointCounts(SentKeypoints(kf, format), capacity);
+  if (counts.size() > static_cast<size_t>(std::numeric_limits<int16_t>::max())) {
+    throw std::invalid_argument("keyframe would need " + std::to_string(counts.size()) +
+                                " parts (at most 32767)");
+  }
+  std::vector<aglcm::air_keyframe_t> parts;
+  int first = 0;
+  for (size_t i = 0; i < counts.size(); ++i) {
+    parts.push_back(EncodePart(kf, format, first, counts[i], static_cast<int>(i),
+                               static_cast<int>(counts.size())));
+    first += counts[i];
+  }
+  return parts;
 }
 
 DecodedKeyframe DecodeKeyframe(const aglcm::air_keyframe_t& p) {
@@ -297,6 +407,10 @@ DecodedKeyframe DecodeKeyframe(const aglcm::air_keyframe_t& p) {
     return out;
   };
   if (!IsValidAgentName(p.agent)) return fail("invalid agent name");
+  if (p.num_parts < 1 || p.part < 0 || p.part >= p.num_parts) {
+    return fail("part " + std::to_string(p.part) + " of " + std::to_string(p.num_parts) +
+                " (need 0 <= part < num_parts)");
+  }
   for (double v : p.position) {
     if (!std::isfinite(v)) return fail("non-finite camera position");
   }
@@ -324,8 +438,17 @@ DecodedKeyframe DecodeKeyframe(const aglcm::air_keyframe_t& p) {
   }
   if (!DequantizeArray(p.global_descriptor, &global, &error))
     return fail("global descriptor: " + error);
-  if (global.rows != 1 || global.cols == 0) return fail("global descriptor must be one vector");
+  // Part 0 carries the global descriptor, the last part may repeat it.
+  if ((p.part == 0 || !global.empty()) && (global.rows != 1 || global.cols == 0)) {
+    return fail("global descriptor must be one vector");
+  }
+  if (p.part > 0 && p.part < p.num_parts - 1 && !global.empty()) {
+    return fail("global descriptor in part " + std::to_string(p.part) + " of " +
+                std::to_string(p.num_parts) + " (only the first and last have one)");
+  }
 
+  out.part = p.part;
+  out.num_parts = p.num_parts;
   AirKeyframe& kf = out.keyframe;
   kf.agent = p.agent;
   kf.seq = p.seq;
@@ -350,8 +473,10 @@ DecodedKeyframe DecodeKeyframe(const aglcm::air_keyframe_t& p) {
     if (norm > 0 && std::abs(norm - 1.0) > 1e-5) row /= norm;
   }
   kf.features.descriptors = descriptors;
-  kf.global_descriptor.assign(global.ptr<float>(), global.ptr<float>() + global.cols);
-  const double gnorm = cv::norm(global);
+  if (!global.empty()) {
+    kf.global_descriptor.assign(global.ptr<float>(), global.ptr<float>() + global.cols);
+  }
+  const double gnorm = global.empty() ? 0.0 : cv::norm(global);
   if (gnorm > 0 && std::abs(gnorm - 1.0) > 1e-5) {
     for (float& v : kf.global_descriptor) v = static_cast<float>(v / gnorm);
   }

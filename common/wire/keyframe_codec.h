@@ -5,7 +5,9 @@
 // the same code; everything else sees only ag::AirKeyframe.
 
 #include <cstdint>
+#include <functional>
 #include <string>
+#include <vector>
 
 #include "common/types/keyframe.h"
 #include "common/wire/encoding.h"
@@ -44,16 +46,54 @@ int64_t EncodedKeyframeSize(const std::string& agent, const std::string& camera_
                             const std::string& descriptor_type, int keypoints, int dim,
                             int global_dim, const PacketFormat& format);
 
-struct DecodedKeyframe {
-  bool ok = false;
-  std::string error;  ///< what is wrong with the packet, when !ok
-  AirKeyframe keyframe;
+/// How many keypoints the parts of a split keyframe hold (air_keyframe_t.lcm:
+/// the first and last parts carry the global descriptor, so they hold fewer).
+struct PartCapacity {
+  int first = 0;  ///< keypoints in a part with the global descriptor (first, last)
+  int rest = 0;   ///< keypoints in a part between them
 };
 
-/// Validates and expands a packet: agent name, finite pose with a unit
-/// quaternion, keypoint arrays consistent with num_keypoints, descriptor
-/// count equal to the keypoint count, global descriptor a single vector,
-/// all values finite. Descriptors are re-normalised to unit length.
+/// The keypoints of each part when `keypoints` are split at `capacity`:
+/// part 0 filled first, then the middle parts in order, the last with at
+/// most `first`. One part when they all fit in part 0.
+std::vector<int> PartKeypointCounts(int keypoints, const PartCapacity& capacity);
+
+/// The largest part capacity (up to `max_keypoints` per part) whose encoded
+/// parts all satisfy `fits(encoded_size)`. Throws std::invalid_argument
+/// naming the smallest size that would do when not even a part with the
+/// global descriptor and no keypoint, or a middle part with one, fits.
+PartCapacity FitPartCapacity(const std::string& agent, const std::string& camera_id,
+                             const std::string& descriptor_type, int dim, int global_dim,
+                             const PacketFormat& format, int max_keypoints,
+                             const std::function<bool(int64_t encoded_size)>& fits);
+
+/// Encoded size of each part (see EncodedKeyframeSize) for `keypoints`
+/// keypoints split at `capacity`.
+std::vector<int64_t> EncodedPartSizes(const std::string& agent, const std::string& camera_id,
+                                      const std::string& descriptor_type, int keypoints, int dim,
+                                      int global_dim, const PacketFormat& format,
+                                      const PartCapacity& capacity);
+
+/// Builds the parts of a keyframe split at `capacity` (the first
+/// min(max_keypoints, n) keypoints, as EncodeKeyframe sends them). One part,
+/// equal to EncodeKeyframe's packet, when they fit in part 0.
+std::vector<aglcm::air_keyframe_t> EncodeKeyframeParts(const AirKeyframe& keyframe,
+                                                       const PacketFormat& format,
+                                                       const PartCapacity& capacity);
+
+struct DecodedKeyframe {
+  bool ok = false;
+  std::string error;     ///< what is wrong with the packet, when !ok
+  AirKeyframe keyframe;  ///< of a part: its keypoints; global descriptor if it has one
+  int part = 0;          ///< index of this part
+  int num_parts = 1;     ///< parts of the keyframe (1: whole)
+};
+
+/// Validates and expands a packet: agent name, part index in range, finite
+/// pose with a unit quaternion, keypoint arrays consistent with
+/// num_keypoints, descriptor count equal to the keypoint count, global
+/// descriptor a single vector (part 0; the last part: one or none) or empty
+/// (parts between), all values finite. Descriptors are re-normalised to unit length.
 DecodedKeyframe DecodeKeyframe(const aglcm::air_keyframe_t& packet);
 
 }  // namespace ag

@@ -18,6 +18,7 @@
 #include "common/core/agent_name.h"
 #include "common/dataset/dataset.h"
 #include "common/wire/channels.h"
+#include "common/wire/keyframe_assembler.h"
 #include "common/wire/keyframe_codec.h"
 #include "common/wire/lcm_url.h"
 #include "common/wire/link_bytes.h"
@@ -28,6 +29,10 @@ namespace ag {
 
 namespace fs = std::filesystem;
 using SteadyClock = std::chrono::steady_clock;
+
+double SteadySeconds(SteadyClock::time_point t) {
+  return std::chrono::duration<double>(t.time_since_epoch()).count();
+}
 
 namespace {
 
@@ -140,6 +145,7 @@ void GroundServerOptions::Check() const {
   CheckOption(image_queue >= 1, "image_queue", "must be >= 1");
   CheckOption(pending_sensor_queue >= 1, "pending_sensor_queue", "must be >= 1");
   CheckOption(air_keyframe_queue >= 1, "air_keyframe_queue", "must be >= 1");
+  CheckOption(air_part_timeout_s > 0, "air_part_timeout_s", "must be > 0");
   CheckOption(odometry_queue_messages >= 1, "odometry_queue_messages", "must be >= 1");
   CheckOption(max_air_agents >= 1, "max_air_agents", "must be >= 1");
   std::string regex_error;
@@ -191,6 +197,7 @@ struct AgentState {
   int64_t stored = 0;
   int64_t rejected = 0;
   int64_t seq_gaps = 0;
+  int64_t parts_lost = 0;               // parts of split keyframes that never arrived
   std::optional<int64_t> last_raw_seq;  // as the UAV numbered it
   int64_t seq_offset = 0;               // added to the UAV's seq (after a UAV restart)
   int64_t max_stored_seq = -1;          // in the place database (restored ones included)
@@ -249,6 +256,7 @@ struct GroundServerApp::Impl {
   std::mutex air_mutex;
   std::condition_variable air_cv;
   std::deque<AirPacket> air_queue;
+  KeyframeAssembler assembler;  // keyframe thread only
 
   std::mutex window_mutex;
   std::condition_variable window_cv;
@@ -318,6 +326,8 @@ struct GroundServerApp::Impl {
   void AirLoop();
   void PersistLoop();
   void ProcessAirPacket(const AirPacket& packet);
+  /// Stores a (joined) UAV keyframe in the place database and wakes its estimation.
+  void StoreAirKeyframe(KeyframeAssembler::Joined&& joined, SteadyClock::time_point arrival);
   void DrainPending();
   void AddOdometry(const StampedPose& pose);
   void ResetUgvTime(const std::string& why);
@@ -724,15 +734,32 @@ void GroundServerApp::Impl::OnAirKeyframe(const lcm::ReceiveBuffer* rbuf,
 
 void GroundServerApp::Impl::AirLoop() {
   while (true) {
-    AirPacket packet;
+    std::optional<AirPacket> packet;
     {
       std::unique_lock<std::mutex> lock(air_mutex);
-      air_cv.wait(lock, [&] { return stopping || !air_queue.empty(); });
+      // Wake at least every air_part_timeout_s to finish split keyframes
+      // whose last parts were lost.
+      air_cv.wait_for(lock, std::chrono::duration<double>(options.air_part_timeout_s),
+                      [&] { return stopping || !air_queue.empty(); });
       if (stopping) return;
-      packet = std::move(air_queue.front());
-      air_queue.pop_front();
+      if (!air_queue.empty()) {
+        packet = std::move(air_queue.front());
+        air_queue.pop_front();
+      }
     }
-    ProcessAirPacket(packet);
+    if (packet) ProcessAirPacket(*packet);
+    // Only with no packet waiting: a backlog (a busy machine) must not make
+    // the parts still queued look lost.
+    bool backlog = false;
+    {
+      std::lock_guard<std::mutex> lock(air_mutex);
+      backlog = !air_queue.empty();
+    }
+    if (backlog) continue;
+    const SteadyClock::time_point now = SteadyClock::now();
+    for (KeyframeAssembler::Joined& joined : assembler.Expire(SteadySeconds(now))) {
+      StoreAirKeyframe(std::move(joined), now);
+    }
   }
 }
 
@@ -764,16 +791,47 @@ void GroundServerApp::Impl::ProcessAirPacket(const AirPacket& packet) {
          "more than max_air_agents air agents: keyframe ignored");
     return;
   }
-  const int64_t raw_seq = d.keyframe.seq;
-  const LinkBytes link = LcmLinkBytes(channel, static_cast<int64_t>(packet.bytes.size()));
+  {
+    const LinkBytes link = LcmLinkBytes(channel, static_cast<int64_t>(packet.bytes.size()));
+    std::lock_guard<std::mutex> lock(agent->mutex);
+    ++agent->packets;
+    agent->recent_ip_bytes.emplace_back(packet.arrival, link.ip);
+  }
+  if (d.num_parts > 1) Count(&GroundServerStats::air_parts);
+  std::string error;
+  std::vector<KeyframeAssembler::Joined> joined =
+      assembler.Add(std::move(d), SteadySeconds(packet.arrival), &error);
+  if (!error.empty()) Bad(channel, error);
+  for (KeyframeAssembler::Joined& j : joined) StoreAirKeyframe(std::move(j), packet.arrival);
+}
+
+void GroundServerApp::Impl::StoreAirKeyframe(KeyframeAssembler::Joined&& joined,
+                                             SteadyClock::time_point arrival) {
+  const std::string channel = AirKeyframeChannel(joined.keyframe.agent);
+  AgentState* agent = Agent(joined.keyframe.agent);
+  if (agent == nullptr) return;  // refused when its first part came
+  if (joined.num_parts > 1 && joined.parts_received < joined.num_parts) {
+    Count(&GroundServerStats::air_parts_lost, joined.num_parts - joined.parts_received);
+    std::lock_guard<std::mutex> lock(agent->mutex);
+    agent->parts_lost += joined.num_parts - joined.parts_received;
+  }
+  if (!joined.usable) {
+    // Without a global descriptor it could never be retrieved.
+    Count(&GroundServerStats::air_parts_dropped, joined.parts_received);
+    Warn("air keyframes without a global descriptor",
+         fmt::format("{}: keyframe {} lost both parts with the global descriptor (the first and "
+                     "the last) on the link: its {} other parts dropped",
+                     channel, joined.keyframe.seq, joined.parts_received));
+    return;
+  }
+  AirKeyframe keyframe = std::move(joined.keyframe);
+  const int64_t raw_seq = keyframe.seq;
   bool known_camera = true;
   bool restarted = false;
   int64_t previous_seq = -1;
   {
     std::lock_guard<std::mutex> lock(agent->mutex);
-    ++agent->packets;
-    agent->recent_ip_bytes.emplace_back(packet.arrival, link.ip);
-    known_camera = agent->cameras.count(d.keyframe.camera_id) > 0;
+    known_camera = agent->cameras.count(keyframe.camera_id) > 0;
     if (agent->last_raw_seq && raw_seq <= *agent->last_raw_seq) {
       // The UAV numbers from 0 again: air_agent restarted. Its keyframes are
       // stored after the ones already held rather than refused as duplicates.
@@ -792,23 +850,23 @@ void GroundServerApp::Impl::ProcessAirPacket(const AirPacket& packet) {
       agent->seq_offset = agent->max_stored_seq + 1 - raw_seq;
     }
     agent->last_raw_seq = raw_seq;
-    d.keyframe.seq = raw_seq + agent->seq_offset;
+    keyframe.seq = raw_seq + agent->seq_offset;
   }
   if (restarted) {
     Count(&GroundServerStats::air_restarts);
     Warn("air agent restarts",
          fmt::format("{}: keyframe seq {} does not follow seq {}: air_agent restarted? its "
                      "keyframes are stored from seq {} on",
-                     agent->name, raw_seq, previous_seq, d.keyframe.seq));
+                     agent->name, raw_seq, previous_seq, keyframe.seq));
   }
   if (!known_camera) {
     Drop(&GroundServerStats::air_keyframes_unknown_camera, "keyframes of unknown cameras", channel,
-         "keyframe " + std::to_string(raw_seq) + " of camera '" + d.keyframe.camera_id +
+         "keyframe " + std::to_string(raw_seq) + " of camera '" + keyframe.camera_id +
              "' before its camera_info: stored, used once the camera_info arrives");
   }
-  const int64_t seq = d.keyframe.seq;
-  const int64_t air_t_ns = d.keyframe.t_ns;
-  const PlaceDb::InsertResult ins = db.Insert(std::move(d.keyframe));
+  const int64_t seq = keyframe.seq;
+  const int64_t air_t_ns = keyframe.t_ns;
+  const PlaceDb::InsertResult ins = db.Insert(std::move(keyframe));
   std::lock_guard<std::mutex> lock(agent->mutex);
   if (!ins.success) {
     ++agent->rejected;
@@ -818,15 +876,14 @@ void GroundServerApp::Impl::ProcessAirPacket(const AirPacket& packet) {
   }
   ++agent->stored;
   agent->max_stored_seq = std::max(agent->max_stored_seq, seq);
-  agent->received[air_t_ns] = packet.arrival;
+  agent->received[air_t_ns] = arrival;
   while (agent->received.size() > 64) agent->received.erase(agent->received.begin());
   Count(&GroundServerStats::air_keyframes);
   db_dirty = true;
   // Wake the agent's estimation (under window_mutex, so its wait cannot miss it).
   agent->newest_keyframe_t_ns = air_t_ns;
   agent->newest_keyframe_arrival_ns =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(packet.arrival.time_since_epoch())
-          .count();
+      std::chrono::duration_cast<std::chrono::nanoseconds>(arrival.time_since_epoch()).count();
   {
     std::lock_guard<std::mutex> window_lock(window_mutex);
     ++agent->keyframe_generation;
@@ -1004,14 +1061,14 @@ void GroundServerApp::Impl::LogStatus() {
   const VoxelMapBuilderStats b = builder.stats();
   spdlog::info(
       "ugv: odometry {} (rejected {}, clock jumps {}) scans {} (dropped {}) images {} keyframes "
-      "{} (dropped {}) map {} voxels; uav packets {} (dropped {}) keyframes stored {} "
-      "(rejected {}, unknown camera {}, lost on the link {}); place db {}; bad messages {}, "
-      "frame id mismatches {}",
+      "{} (dropped {}) map {} voxels; uav packets {} (dropped {}, parts {}) keyframes stored {} "
+      "(rejected {}, unknown camera {}, lost on the link {}; parts lost {}, dropped {}); place "
+      "db {}; bad messages {}, frame id mismatches {}",
       s.odometry, s.odometry_rejected, s.clock_jumps, s.scans,
       s.scans_dropped + static_cast<int64_t>(b.scans_dropped), s.images, s.keyframes,
-      s.keyframes_dropped, map.num_voxels(), s.air_packets, s.air_packets_dropped, s.air_keyframes,
-      s.air_keyframes_rejected, s.air_keyframes_unknown_camera, s.air_seq_gaps, db.Size(),
-      s.bad_messages, s.frame_id_mismatches);
+      s.keyframes_dropped, map.num_voxels(), s.air_packets, s.air_packets_dropped, s.air_parts,
+      s.air_keyframes, s.air_keyframes_rejected, s.air_keyframes_unknown_camera, s.air_seq_gaps,
+      s.air_parts_lost, s.air_parts_dropped, db.Size(), s.bad_messages, s.frame_id_mismatches);
   std::lock_guard<std::mutex> lock(agents_mutex);
   for (auto& [name, agent] : agents) {
     std::lock_guard<std::mutex> agent_lock(agent->mutex);
@@ -1039,12 +1096,12 @@ void GroundServerApp::Impl::LogStatus() {
     const std::string latency =
         agent->latency_s >= 0 ? fmt::format("{:.2f} s", agent->latency_s) : std::string("-");
     spdlog::info(
-        "{}: {}; {}; inliers {}; latency {}; link {:.3f} Mbps (IP, last {:.0f} s); keyframes "
-        "{} received, {} stored, {} rejected, {} lost on the link; {} cameras; {} estimates; "
-        "{}",
+        "{}: {}; {}; inliers {}; latency {}; link {:.3f} Mbps (IP, last {:.0f} s); packets {} "
+        "received; keyframes {} stored, {} rejected, {} lost on the link; keyframe parts {} "
+        "lost; {} cameras; {} estimates; {}",
         name, agent->status, pose, agent->inliers, latency, recent * 8.0 / 1e6 / kLinkWindowS,
         kLinkWindowS, agent->packets, agent->stored, agent->rejected, agent->seq_gaps,
-        agent->cameras.size(), agent->estimates, agent->reason);
+        agent->parts_lost, agent->cameras.size(), agent->estimates, agent->reason);
   }
 }
 

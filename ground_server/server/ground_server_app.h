@@ -78,7 +78,12 @@ struct GroundServerOptions {
   double estimate_period_s = 1.0;      ///< per agent, at most one estimate per period (s)
   int image_queue = 4;                 ///< UGV keyframe images waiting for the frontend
   int pending_sensor_queue = 200;      ///< images/scans waiting for odometry
-  int air_keyframe_queue = 32;         ///< UAV keyframe packets waiting to be decoded and stored
+  /// UAV keyframe packets waiting to be decoded and stored (each part of a
+  /// split keyframe is one)
+  int air_keyframe_queue = 256;
+  /// A split keyframe still missing parts this long after its latest part
+  /// is joined from the parts that arrived (s).
+  double air_part_timeout_s = 0.5;
   /// LCM's queue for the odometry channel (messages); LCM's default (30) is
   /// 0.3 s of 100 Hz odometry, less than a burst of scans and images takes.
   int odometry_queue_messages = 1000;
@@ -118,6 +123,7 @@ struct GroundServerOptions {
     v("image_queue", image_queue);
     v("pending_sensor_queue", pending_sensor_queue);
     v("air_keyframe_queue", air_keyframe_queue);
+    v("air_part_timeout_s", air_part_timeout_s);
     v("odometry_queue_messages", odometry_queue_messages);
     v("max_air_agents", max_air_agents);
     v("air_agents", air_agents);
@@ -156,11 +162,14 @@ struct GroundServerStats {
   int64_t air_keyframes = 0;           ///< UAV keyframes stored
   int64_t air_keyframes_rejected = 0;  ///< refused by the place database
   int64_t air_keyframes_unknown_camera = 0;  ///< stored before their camera_info arrived
-  int64_t air_seq_gaps = 0;                  ///< keyframes lost on the link (seq gaps)
-  int64_t air_restarts = 0;                  ///< an air agent's seq went back (restart)
-  int64_t camera_infos = 0;                  ///< valid camera_info messages
-  int64_t relative_poses = 0;                ///< messages published
-  int64_t saves = 0;                         ///< persistence snapshots written
+  int64_t air_seq_gaps = 0;    ///< keyframes lost on the link (seq gaps, or no global descriptor)
+  int64_t air_parts = 0;       ///< packets that were parts of split keyframes
+  int64_t air_parts_lost = 0;  ///< parts of split keyframes that never arrived
+  int64_t air_parts_dropped = 0;  ///< received, but their keyframe lost its global descriptor
+  int64_t air_restarts = 0;       ///< an air agent's seq went back (restart)
+  int64_t camera_infos = 0;       ///< valid camera_info messages
+  int64_t relative_poses = 0;     ///< messages published
+  int64_t saves = 0;              ///< persistence snapshots written
   int64_t save_failures = 0;
 };
 

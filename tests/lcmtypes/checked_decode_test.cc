@@ -66,7 +66,7 @@ TEST(DecodeChecked, SurvivesHostileLengthsInEveryMessage) {
 TEST(DecodeChecked, RejectsImpossibleKeypointCounts) {
   // The documented layout puts num_keypoints right after the global descriptor.
   const aglcm::air_keyframe_t kf = test::MakeAirKeyframe(12);
-  const size_t offset = 8 + (5 + kf.agent.size()) + 16 + (5 + kf.camera_id.size()) + 56 +
+  const size_t offset = 8 + (5 + kf.agent.size()) + 20 + (5 + kf.camera_id.size()) + 56 +
                         (5 + kf.descriptor_type.size()) +
                         static_cast<size_t>(kf.global_descriptor._getEncodedSizeNoHash());
   const std::vector<uint8_t> buf = Encode(kf);

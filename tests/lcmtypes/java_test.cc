@@ -99,6 +99,8 @@ TEST(LcmJava, LcmSpyTypeDatabaseDecodesWhatCppEncodes) {
   EXPECT_EQ(fields["0 class"], "aglcm.air_keyframe_t") << output;
   EXPECT_EQ(fields["0 agent"], "uav_1");
   EXPECT_EQ(fields["0 seq"], "4242");
+  EXPECT_EQ(fields["0 part"], "2");
+  EXPECT_EQ(fields["0 num_parts"], "3");
   EXPECT_EQ(fields["0 t_ns"], "1700000000123456789");
   EXPECT_EQ(fields["0 position"], "[1.5, -2.25, 10.125]");
   EXPECT_EQ(fields["0 orientation"], "[0.5, -0.5, 0.5, -0.5]");

@@ -43,6 +43,8 @@ void ExpectEqual(const aglcm::quantized_array_t& a, const aglcm::quantized_array
 void ExpectEqual(const aglcm::air_keyframe_t& a, const aglcm::air_keyframe_t& b) {
   EXPECT_EQ(a.agent, b.agent);
   EXPECT_EQ(a.seq, b.seq);
+  EXPECT_EQ(a.part, b.part);
+  EXPECT_EQ(a.num_parts, b.num_parts);
   EXPECT_EQ(a.t_ns, b.t_ns);
   EXPECT_EQ(a.camera_id, b.camera_id);
   ExpectArrayEq(a.position, b.position, "position");

@@ -70,6 +70,8 @@ inline aglcm::air_keyframe_t MakeAirKeyframe(int num_keypoints, uint32_t seed = 
   aglcm::air_keyframe_t kf;
   kf.agent = "uav_1";
   kf.seq = 4242;
+  kf.part = 2;
+  kf.num_parts = 3;
   kf.t_ns = 1700000000123456789;
   kf.camera_id = "cam0";
   kf.position[0] = 1.5;

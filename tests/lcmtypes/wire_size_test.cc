@@ -47,7 +47,7 @@ int64_t AirKeyframeBytes(const aglcm::air_keyframe_t& kf, const Layout& global, 
                          const Layout& local, int local_dim) {
   const int64_t n = kf.num_keypoints;
   return 8                                            // fingerprint
-         + StringBytes(kf.agent) + 8 + 8              // agent, seq, t_ns
+         + StringBytes(kf.agent) + 8 + 2 + 2 + 8      // agent, seq, part, num_parts, t_ns
          + StringBytes(kf.camera_id) + 3 * 8 + 4 * 8  // camera_id, pose
          + StringBytes(kf.descriptor_type)            // descriptor_type
          + LayoutBytes(global, 1, global_dim)         // global_descriptor

@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <opencv2/calib3d.hpp>
@@ -130,6 +131,46 @@ int main(int argc, char** argv) {
       std::printf("| %d | %s | %lld | %lld | %.3f | %.2f |\n", n, ag::ToString(e),
                   static_cast<long long>(size), static_cast<long long>(link.ip),
                   link.ip * 8.0 / 1e6, paper);
+    }
+  }
+
+  // Whole keyframes versus parts of one IP packet (frontend.max_part_bytes:
+  // 1500) on a link that loses IP packets independently with probability p.
+  std::printf(
+      "\nLossy link: keyframe sent whole vs split into parts of <= 1500 IPv4 bytes (int8 "
+      "descriptors); expected keypoints that arrive, and keyframes still usable (a whole one "
+      "needs every IP packet, a split one its first or last part)\n");
+  std::printf(
+      "| keypoints | whole: IPv4 B | IP packets | split: IPv4 B | parts | extra bytes | loss | "
+      "whole: keypoints arriving | split: keypoints arriving | whole: keyframes usable | "
+      "split: keyframes usable |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (int n : {256, 512, 1024}) {
+    ag::PacketFormat f;
+    f.descriptors = ArrayEncoding::kInt8;
+    f.global = ArrayEncoding::kFloat16;
+    const std::string channel = ag::AirKeyframeChannel("uav0");
+    const ag::LinkBytes whole =
+        ag::LcmLinkBytes(channel, ag::EncodedKeyframeSize("uav0", "cam0", "xfeat", n, 64, 512, f));
+    const ag::PartCapacity cap = ag::FitPartCapacity(
+        "uav0", "cam0", "xfeat", 64, 512, f, n,
+        [&](int64_t size) { return ag::LcmLinkBytes(channel, size).ip <= 1500; });
+    int64_t split_ip = 0;
+    const std::vector<int64_t> parts =
+        ag::EncodedPartSizes("uav0", "cam0", "xfeat", n, 64, 512, f, cap);
+    for (int64_t size : parts) split_ip += ag::LcmLinkBytes(channel, size).ip;
+    // Every IP packet adds a 20-byte header, every datagram an 8-byte UDP one.
+    const int64_t ip_packets = (whole.ip - whole.lcm_udp - 8 * whole.datagrams) / 20;
+    for (double loss : {0.01, 0.05, 0.1, 0.2}) {
+      const double whole_arrives = std::pow(1 - loss, static_cast<double>(ip_packets));
+      const double usable = parts.size() > 1 ? 1 - loss * loss : 1 - loss;
+      std::printf(
+          "| %d | %lld | %lld | %lld | %zu | %.1f%% | %.0f%% | %.0f | %.0f | %.0f%% | %.0f%% |\n",
+          n, static_cast<long long>(whole.ip), static_cast<long long>(ip_packets),
+          static_cast<long long>(split_ip), parts.size(),
+          100.0 * static_cast<double>(split_ip - whole.ip) / static_cast<double>(whole.ip),
+          100 * loss, n * whole_arrives, n * (1 - loss) * usable, 100 * whole_arrives,
+          100 * usable);
     }
   }
 

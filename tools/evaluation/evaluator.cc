@@ -9,6 +9,7 @@
 #include "common/geometry/tum_io.h"
 #include "common/pcd/pcd_io.h"
 #include "common/wire/channels.h"
+#include "common/wire/keyframe_assembler.h"
 #include "lcmtypes/checked_decode.h"
 
 namespace ag {
@@ -78,6 +79,7 @@ struct AirAgentState {
   std::unique_ptr<AirFrontend> frontend;
   std::unique_ptr<AgentEstimator> estimator;
   std::optional<Pose> truth;
+  KeyframeAssembler assembler;  ///< joins split keyframes (frontend.max_part_bytes)
 };
 
 }  // namespace
@@ -321,18 +323,26 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
         if (out.features_ms > 0) report.timing.air_features_per_frame.push_back(out.features_ms);
         if (!out.gave_up.empty()) spdlog::debug("{}: {}", s.name, out.gave_up);
         if (!out.keyframe) break;
-        // Through the wire: encode to bytes, decode as the ground would.
-        std::vector<uint8_t> bytes(out.encoded_bytes);
-        out.packet.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-        aglcm::air_keyframe_t received;
-        if (DecodeChecked(bytes.data(), static_cast<int>(bytes.size()), &received) < 0) {
-          throw std::logic_error("evaluator: own packet does not decode");
+        // Through the wire: encode to bytes, decode and join as the ground would.
+        for (const aglcm::air_keyframe_t& packet : out.packets) {
+          std::vector<uint8_t> bytes(packet.getEncodedSize());
+          packet.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+          aglcm::air_keyframe_t received;
+          if (DecodeChecked(bytes.data(), static_cast<int>(bytes.size()), &received) < 0) {
+            throw std::logic_error("evaluator: own packet does not decode");
+          }
+          DecodedKeyframe decoded = DecodeKeyframe(received);
+          if (!decoded.ok) throw std::logic_error("evaluator: " + decoded.error);
+          std::string error;
+          for (KeyframeAssembler::Joined& joined : s.assembler.Add(
+                   std::move(decoded), 1e-9 * static_cast<double>(frame.t_ns), &error)) {
+            const int64_t seq = joined.keyframe.seq;
+            const PlaceDb::InsertResult ins = db.Insert(std::move(joined.keyframe));
+            if (!ins.success)
+              spdlog::warn("{}: keyframe {} not stored: {}", s.name, seq, ins.reason);
+          }
+          if (!error.empty()) throw std::logic_error("evaluator: " + error);
         }
-        const DecodedKeyframe decoded = DecodeKeyframe(received);
-        if (!decoded.ok) throw std::logic_error("evaluator: " + decoded.error);
-        const PlaceDb::InsertResult ins = db.Insert(decoded.keyframe);
-        if (!ins.success)
-          spdlog::warn("{}: keyframe {} not stored: {}", s.name, received.seq, ins.reason);
         ++rec.packets_sent;
         rec.bytes_sent += out.link.lcm_udp;
         rec.bytes_ip += out.link.ip;

@@ -5,6 +5,8 @@
 #include <opencv2/core.hpp>
 #include <random>
 
+#include "common/wire/keyframe_assembler.h"
+
 namespace ag {
 namespace {
 
@@ -161,6 +163,10 @@ TEST(KeyframeCodecTest, MalformedPacketsAreRejectedWithAReason) {
          p.global_descriptor.dim = 256;
        }},
       {"descriptor_type", [](auto& p) { p.descriptor_type = ""; }},
+      {"part 3 of 3", [](auto& p) { p.part = 3, p.num_parts = 3; }},
+      {"part -1 of 2", [](auto& p) { p.part = -1, p.num_parts = 2; }},
+      {"part 0 of 0", [](auto& p) { p.num_parts = 0; }},
+      {"global descriptor in part 1 of 3", [](auto& p) { p.part = 1, p.num_parts = 3; }},
   };
   for (const Case& c : cases) {
     aglcm::air_keyframe_t p = good;
@@ -169,6 +175,222 @@ TEST(KeyframeCodecTest, MalformedPacketsAreRejectedWithAReason) {
     EXPECT_FALSE(d.ok) << c.expect;
     EXPECT_NE(d.error.find(c.expect), std::string::npos) << "got: " << d.error;
   }
+}
+
+// ---------------------------------------------------------------- parts
+
+/// The parts' messages through LCM bytes and DecodeKeyframe, as the ground receives them.
+std::vector<DecodedKeyframe> RoundTripParts(const std::vector<aglcm::air_keyframe_t>& parts) {
+  std::vector<DecodedKeyframe> out;
+  for (const aglcm::air_keyframe_t& part : parts) {
+    std::vector<uint8_t> buffer(part.getEncodedSize());
+    part.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
+    aglcm::air_keyframe_t received;
+    EXPECT_EQ(received.decode(buffer.data(), 0, static_cast<int>(buffer.size())),
+              static_cast<int>(buffer.size()));
+    out.push_back(DecodeKeyframe(received));
+    EXPECT_TRUE(out.back().ok) << out.back().error;
+  }
+  return out;
+}
+
+TEST(KeyframePartsTest, PartsFitTheirLimitAndCarryEveryKeypointOnce) {
+  const AirKeyframe kf = MakeKeyframe(400, 64, 5);
+  for (ArrayEncoding e : {ArrayEncoding::kInt8, ArrayEncoding::kBits4}) {
+    PacketFormat f;
+    f.descriptors = e;
+    f.max_keypoints = 350;
+    const int64_t limit = 1400;
+    const PartCapacity cap = FitPartCapacity("uav_1", "cam0", "xfeat", 64, 512, f, 1024,
+                                             [&](int64_t size) { return size <= limit; });
+    ASSERT_GT(cap.rest, cap.first);  // part 0 also carries the global descriptor
+    const std::vector<aglcm::air_keyframe_t> parts = EncodeKeyframeParts(kf, f, cap);
+    const std::vector<int64_t> sizes =
+        EncodedPartSizes("uav_1", "cam0", "xfeat", 350, 64, 512, f, cap);
+    ASSERT_EQ(parts.size(), sizes.size());
+    // First and last with the global descriptor, full middle parts between.
+    EXPECT_EQ(static_cast<int>(parts.size()), 2 + (350 - 2 * cap.first + cap.rest - 1) / cap.rest);
+    for (size_t i = 0; i < parts.size(); ++i) {
+      const bool with_global = i == 0 || i + 1 == parts.size();
+      EXPECT_EQ(parts[i].global_descriptor.count, with_global ? 1 : 0) << "part " << i;
+      EXPECT_EQ(parts[i].getEncodedSize(), sizes[i]) << "part " << i;  // the size model is exact
+      EXPECT_LE(sizes[i], limit) << "part " << i;
+      EXPECT_EQ(parts[i].part, static_cast<int16_t>(i));
+      EXPECT_EQ(parts[i].num_parts, static_cast<int16_t>(parts.size()));
+    }
+    // One more keypoint in a full part would not fit: the capacity is the largest.
+    PartCapacity bigger = cap;
+    ++bigger.rest;
+    EXPECT_GT(EncodedPartSizes("uav_1", "cam0", "xfeat", 2 * cap.first + bigger.rest, 64, 512, f,
+                               bigger)[1],
+              limit);
+
+    KeyframeAssembler assembler;
+    std::vector<KeyframeAssembler::Joined> joined;
+    std::string error;
+    for (DecodedKeyframe& d : RoundTripParts(parts)) {
+      for (auto& j : assembler.Add(std::move(d), 0.0, &error)) joined.push_back(std::move(j));
+      EXPECT_EQ(error, "");
+    }
+    ASSERT_EQ(joined.size(), 1u);  // complete as soon as the last part is in
+    const KeyframeAssembler::Joined& j = joined[0];
+    EXPECT_TRUE(j.usable);
+    EXPECT_EQ(j.parts_received, j.num_parts);
+    // The same keyframe as one whole packet would give.
+    const DecodedKeyframe whole = RoundTrip(kf, f);
+    ASSERT_EQ(j.keyframe.features.size(), whole.keyframe.features.size());
+    for (size_t i = 0; i < whole.keyframe.features.size(); ++i) {
+      ASSERT_NEAR((j.keyframe.features.keypoints[i] - whole.keyframe.features.keypoints[i]).norm(),
+                  0.0, 0.04)  // each part picks its own fixed-point step
+          << i;
+    }
+    EXPECT_EQ(cv::norm(j.keyframe.features.descriptors, whole.keyframe.features.descriptors,
+                       cv::NORM_INF),
+              0.0);
+    EXPECT_EQ(j.keyframe.global_descriptor, whole.keyframe.global_descriptor);
+    EXPECT_TRUE(j.keyframe.T_wa_c.isApprox(whole.keyframe.T_wa_c));
+    EXPECT_EQ(assembler.pending(), 0u);
+  }
+}
+
+TEST(KeyframePartsTest, FewKeypointsGoInOnePartAndTooSmallALimitIsNamed) {
+  PacketFormat f;
+  const auto fits = [](int64_t size) { return size <= 1400; };
+  const PartCapacity cap = FitPartCapacity("uav_1", "cam0", "xfeat", 64, 512, f, 1024, fits);
+  const std::vector<aglcm::air_keyframe_t> parts =
+      EncodeKeyframeParts(MakeKeyframe(cap.first, 64, 6), f, cap);
+  ASSERT_EQ(parts.size(), 1u);
+  EXPECT_EQ(parts[0].num_parts, 1);
+  EXPECT_EQ(PartKeypointCounts(0, cap), std::vector<int>{0});
+  // Middle parts full; the last (it repeats the global descriptor) at most `first`.
+  EXPECT_EQ(PartKeypointCounts(2 * cap.first + 2 * cap.rest, cap),
+            (std::vector<int>{cap.first, cap.rest, cap.rest, cap.first}));
+  EXPECT_EQ(PartKeypointCounts(cap.first + 1, cap), (std::vector<int>{cap.first, 1}));
+  EXPECT_EQ(PartKeypointCounts(cap.first + cap.rest, cap),
+            (std::vector<int>{cap.first, cap.rest - cap.first, cap.first}));
+  // The global descriptor alone (float16, 512-D: 1 kB) does not fit 600 bytes.
+  try {
+    FitPartCapacity("uav_1", "cam0", "xfeat", 64, 512, f, 1024,
+                    [](int64_t size) { return size <= 600; });
+    FAIL() << "a 600-byte part cannot hold the global descriptor";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("global descriptor"), std::string::npos) << e.what();
+  }
+}
+
+/// The decoded parts of a 200-keypoint keyframe `seq` split into several.
+std::vector<DecodedKeyframe> SplitKeyframe(int64_t seq, uint32_t seed) {
+  AirKeyframe kf = MakeKeyframe(200, 64, seed);
+  kf.seq = seq;
+  return RoundTripParts(EncodeKeyframeParts(kf, PacketFormat{}, PartCapacity{20, 60}));
+}
+
+TEST(KeyframeAssemblerTest, KeepsTheKeypointsOfThePartsThatArrived) {
+  KeyframeAssembler assembler(0.5);
+  std::vector<DecodedKeyframe> parts = SplitKeyframe(7, 7);
+  ASSERT_EQ(parts.size(), 5u);  // 20 + 60 + 60 + 40 + 20
+  std::string error;
+  EXPECT_TRUE(assembler.Add(std::move(parts[0]), 10.0, &error).empty());
+  EXPECT_TRUE(assembler.Add(std::move(parts[2]), 10.01, &error).empty());  // part 1 lost
+  EXPECT_TRUE(assembler.Add(std::move(parts[3]), 10.015, &error).empty());
+  EXPECT_TRUE(assembler.Add(std::move(parts[4]), 10.02, &error).empty());
+  EXPECT_EQ(error, "");
+  EXPECT_TRUE(assembler.Expire(10.5).empty());  // not yet 0.5 s after the latest part
+  std::vector<KeyframeAssembler::Joined> j = assembler.Expire(10.53);
+  ASSERT_EQ(j.size(), 1u);
+  EXPECT_TRUE(j[0].usable);
+  EXPECT_EQ(j[0].parts_received, 4);
+  EXPECT_EQ(j[0].num_parts, 5);
+  EXPECT_EQ(j[0].keyframe.seq, 7);
+  EXPECT_EQ(j[0].keyframe.features.size(), 140u);
+  EXPECT_EQ(j[0].keyframe.features.descriptors.rows, 140);
+  EXPECT_EQ(j[0].keyframe.global_descriptor.size(), 512u);
+  EXPECT_EQ(assembler.pending(), 0u);
+}
+
+TEST(KeyframeAssemblerTest, ANewerKeyframeFinishesTheOlderOne) {
+  KeyframeAssembler assembler(5.0);
+  std::vector<DecodedKeyframe> a = SplitKeyframe(1, 8);
+  std::vector<DecodedKeyframe> b = SplitKeyframe(2, 9);
+  std::string error;
+  // Parts arrive out of order; parts 3 and 4 of keyframe 1 are lost.
+  EXPECT_TRUE(assembler.Add(std::move(a[1]), 0.0, &error).empty());
+  EXPECT_TRUE(assembler.Add(std::move(a[0]), 0.0, &error).empty());
+  EXPECT_TRUE(assembler.Add(std::move(a[2]), 0.0, &error).empty());
+  std::vector<KeyframeAssembler::Joined> j = assembler.Add(std::move(b[1]), 0.1, &error);
+  ASSERT_EQ(j.size(), 1u);
+  EXPECT_EQ(j[0].keyframe.seq, 1);
+  EXPECT_EQ(j[0].parts_received, 3);
+  EXPECT_TRUE(j[0].usable);
+  EXPECT_EQ(j[0].keyframe.features.size(), 140u);
+  // Part order, not arrival order: the first keypoint is part 0's first.
+  const AirKeyframe original = MakeKeyframe(200, 64, 8);
+  EXPECT_NEAR((j[0].keyframe.features.keypoints[0] - original.features.keypoints[0]).norm(), 0,
+              0.1);
+  // Keyframe 2 lost its first and last parts, both with the global
+  // descriptor: unusable, said so.
+  EXPECT_TRUE(assembler.Add(std::move(b[2]), 0.2, &error).empty());
+  EXPECT_TRUE(assembler.Add(std::move(b[3]), 0.3, &error).empty());
+  j = assembler.Expire(10.0);
+  ASSERT_EQ(j.size(), 1u);
+  EXPECT_FALSE(j[0].usable);
+  EXPECT_EQ(j[0].parts_received, 3);
+  EXPECT_EQ(error, "");
+}
+
+TEST(KeyframeAssemblerTest, TheLastPartStandsInForALostFirst) {
+  KeyframeAssembler assembler;
+  std::vector<DecodedKeyframe> parts = SplitKeyframe(4, 13);
+  const std::vector<float> global = parts[0].keyframe.global_descriptor;
+  std::string error;
+  for (size_t i = 1; i + 1 < parts.size(); ++i) assembler.Add(std::move(parts[i]), 0.0, &error);
+  EXPECT_TRUE(assembler.Expire(0.1).empty());
+  assembler.Add(std::move(parts.back()), 0.0, &error);
+  const std::vector<KeyframeAssembler::Joined> j = assembler.Expire(1.0);
+  ASSERT_EQ(j.size(), 1u);
+  EXPECT_TRUE(j[0].usable);
+  EXPECT_EQ(j[0].keyframe.global_descriptor, global);
+  EXPECT_EQ(j[0].keyframe.features.size(), 180u);
+  EXPECT_EQ(error, "");
+}
+
+TEST(KeyframeAssemblerTest, ContradictingAndRepeatedPartsAreRefusedWithAReason) {
+  KeyframeAssembler assembler;
+  std::vector<DecodedKeyframe> parts = SplitKeyframe(3, 10);
+  std::vector<DecodedKeyframe> copy = SplitKeyframe(3, 10);
+  std::vector<DecodedKeyframe> other = SplitKeyframe(3, 11);  // same seq, another pose
+  std::string error;
+  assembler.Add(std::move(parts[0]), 0.0, &error);
+  EXPECT_TRUE(assembler.Add(std::move(copy[0]), 0.0, &error).empty());
+  EXPECT_NE(error.find("received twice"), std::string::npos) << error;
+  other[1].keyframe.T_wa_c.translation().x() += 1.0;
+  EXPECT_TRUE(assembler.Add(std::move(other[1]), 0.0, &error).empty());
+  EXPECT_NE(error.find("camera pose differs"), std::string::npos) << error;
+  DecodedKeyframe wrong_count = std::move(copy[2]);
+  wrong_count.num_parts = 9;
+  EXPECT_TRUE(assembler.Add(std::move(wrong_count), 0.0, &error).empty());
+  EXPECT_NE(error.find("num_parts differs"), std::string::npos) << error;
+  // What was accepted is kept: the good parts still join.
+  assembler.Add(std::move(parts[1]), 0.0, &error);
+  assembler.Add(std::move(parts[2]), 0.0, &error);
+  assembler.Add(std::move(parts[3]), 0.0, &error);
+  const std::vector<KeyframeAssembler::Joined> j = assembler.Add(std::move(parts[4]), 0.0, &error);
+  ASSERT_EQ(j.size(), 1u);
+  EXPECT_EQ(j[0].parts_received, 5);
+  EXPECT_EQ(j[0].keyframe.features.size(), 200u);
+}
+
+TEST(KeyframeAssemblerTest, WholeKeyframesPassStraightThrough) {
+  KeyframeAssembler assembler;
+  std::string error;
+  const AirKeyframe kf = MakeKeyframe(30, 64, 12);
+  const std::vector<KeyframeAssembler::Joined> j =
+      assembler.Add(RoundTrip(kf, PacketFormat{}), 0.0, &error);
+  ASSERT_EQ(j.size(), 1u);
+  EXPECT_TRUE(j[0].usable);
+  EXPECT_EQ(j[0].num_parts, 1);
+  EXPECT_EQ(j[0].keyframe.features.size(), 30u);
+  EXPECT_EQ(assembler.pending(), 0u);
 }
 
 }  // namespace

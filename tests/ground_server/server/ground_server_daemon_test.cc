@@ -43,6 +43,7 @@
 #include <map>
 #include <optional>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include "common/dataset/dataset.h"
@@ -107,6 +108,7 @@ struct ReceivedKeyframe {
   int64_t t_ns = 0;
   int64_t seq = 0;
   int64_t ip_bytes = 0;
+  int part = 0;  ///< of a split keyframe
 };
 std::vector<ReceivedKeyframe> Keyframes(const std::vector<test::Captured>& capture,
                                         const std::string& agent) {
@@ -118,7 +120,7 @@ std::vector<ReceivedKeyframe> Keyframes(const std::vector<test::Captured>& captu
       ADD_FAILURE() << "undecodable keyframe " << c.path;
       continue;
     }
-    out.push_back({c.recv_utime, msg.t_ns, msg.seq, LcmLinkBytes(c.channel, c.bytes).ip});
+    out.push_back({c.recv_utime, msg.t_ns, msg.seq, LcmLinkBytes(c.channel, c.bytes).ip, msg.part});
   }
   return out;
 }
@@ -398,9 +400,10 @@ TEST(GroundServerDaemon, TwoHostsThrottledLossyLink) {
   const std::string dataset = test::CachedSmallDataset(kDurationS, kSeed);
   test::TempDir tmp;
   constexpr double kBudgetMbps = 0.5;
+  // Keyframes split into parts of one IP packet each (frontend.max_part_bytes).
   WriteConfigs(tmp, "",
-               "frontend: {keyframes: {period_s: 0.5}, governor: {budget_mbps: 0.5, "
-               "max_packet_bytes: 12000, min_keypoints: 128}}\n");
+               "frontend: {keyframes: {period_s: 0.5}, governor: {budget_mbps: 0.5}, "
+               "max_part_bytes: 1500}\n");
   fs::create_directories(tmp / "cap_air");
   fs::create_directories(tmp / "cap_ground");
   // The UAV namespace is the test's private one; the UGV's is a child made
@@ -484,7 +487,8 @@ exit 0
   // guarantee) and, as a check of the real sending times, in wall time.
   const int64_t budget_bytes = static_cast<int64_t>(kBudgetMbps * 1e6 / 8);
   std::vector<std::pair<int64_t, int64_t>> by_camera_time, by_wall_time;
-  int64_t sent_bytes = 0, sent_keyframes = 0, sent_infos = 0;
+  int64_t sent_bytes = 0, sent_parts = 0, sent_infos = 0;
+  std::set<int64_t> sent_seqs;
   for (const test::Captured& c : test::ReadCapture(tmp / "cap_air")) {
     const int64_t ip = LcmLinkBytes(c.channel, c.bytes).ip;
     int64_t t_ns = 0;
@@ -492,7 +496,8 @@ exit 0
       aglcm::air_keyframe_t m;
       ASSERT_TRUE(test::DecodeCaptured(c, &m)) << c.path;
       t_ns = m.t_ns;
-      ++sent_keyframes;
+      ++sent_parts;
+      sent_seqs.insert(m.seq);
     } else {
       aglcm::camera_info_t m;
       ASSERT_TRUE(test::DecodeCaptured(c, &m)) << c.path;
@@ -505,7 +510,9 @@ exit 0
   }
   const int64_t max_camera_window = MaxWindowBytes(by_camera_time, 1000000000);
   const int64_t max_wall_window = MaxWindowBytes(by_wall_time, 1000000000);
+  const int64_t sent_keyframes = static_cast<int64_t>(sent_seqs.size());
   EXPECT_GE(sent_keyframes, 5) << all;
+  EXPECT_GT(sent_parts, 2 * sent_keyframes) << "keyframes were not split into parts\n" << all;
   // Without its camera_info the ground can use none of the keyframes.
   EXPECT_GT(sent_infos, 0) << "air_agent sent no camera_info under the budget\n" << all;
   EXPECT_LE(max_camera_window, budget_bytes) << "bytes in a 1 s window of camera time\n" << all;
@@ -515,19 +522,23 @@ exit 0
 
   // What crossed the link.
   const std::vector<test::Captured> ground_capture = test::ReadCapture(tmp / "cap_ground");
-  int64_t arrived_keyframes = 0, arrived_infos = 0;
+  int64_t arrived_infos = 0;
   for (const test::Captured& c : ground_capture) {
-    arrived_keyframes += c.channel == AirKeyframeChannel("uav1");
     arrived_infos += c.channel == AirCameraInfoChannel("uav1");
   }
+  const std::vector<ReceivedKeyframe> arrived = Keyframes(ground_capture, "uav1");
+  std::set<int64_t> arrived_seqs;
+  for (const ReceivedKeyframe& k : arrived) arrived_seqs.insert(k.seq);
+  const int64_t arrived_keyframes = static_cast<int64_t>(arrived_seqs.size());
+  const int64_t arrived_parts = static_cast<int64_t>(arrived.size());
   const std::vector<ReceivedPose> poses = RelativePoses(ground_capture, "uav1");
   const Pose truth = ReadGroundTruth(dataset + "/groundtruth.yaml").T_wa_wg.at("uav1");
   const FixSummary fixes = Fixes(poses, truth);
   // Time on the link (queue of the shaper included), per keyframe that crossed.
   const std::vector<ReceivedKeyframe> sent = Keyframes(test::ReadCapture(tmp / "cap_air"), "uav1");
-  for (const ReceivedKeyframe& k : Keyframes(ground_capture, "uav1")) {
+  for (const ReceivedKeyframe& k : arrived) {
     for (const ReceivedKeyframe& s : sent) {
-      if (s.seq == k.seq) {
+      if (s.seq == k.seq && s.part == k.part && k.part == 0) {
         std::printf("  keyframe %lld: %.2f s on the link\n", static_cast<long long>(k.seq),
                     static_cast<double>(k.recv_utime - s.recv_utime) * 1e-6);
       }
@@ -538,33 +549,40 @@ exit 0
   std::smatch tc_sent;
   std::regex_search(tc, tc_sent,
                     std::regex("Sent ([0-9]+) bytes ([0-9]+) pkt \\(dropped ([0-9]+)"));
+  const std::string ipt_drop = test::LastLineWith(ipt, "DROP");
   const double wall = test::ScriptNumber(log, "wall_s");
   std::printf(
-      "throttled link: air_agent sent %lld keyframes, %lld camera infos, %lld IP bytes (%.3f "
+      "throttled link: air_agent sent %lld keyframes in %lld parts, %lld camera infos, %lld IP "
+      "bytes (%.3f "
       "Mbit/s over %.1f s); "
       "max 1 s window %lld B camera time, %lld B wall time (budget %lld B); tc: %s; "
-      "arrived: %lld keyframes, %lld camera infos; %zu relative poses, %d tracking; CPU "
+      "iptables: %s; "
+      "arrived: %lld keyframes in %lld parts, %lld camera infos; %zu relative poses, %d "
+      "tracking; CPU "
       "ground_server %.1f s air_agent %.1f s\n  %s\n  %s\n",
-      static_cast<long long>(sent_keyframes), static_cast<long long>(sent_infos),
-      static_cast<long long>(sent_bytes),
+      static_cast<long long>(sent_keyframes), static_cast<long long>(sent_parts),
+      static_cast<long long>(sent_infos), static_cast<long long>(sent_bytes),
       static_cast<double>(sent_bytes) * 8e-6 / std::max(wall, 1.0), wall,
       static_cast<long long>(max_camera_window), static_cast<long long>(max_wall_window),
       static_cast<long long>(budget_bytes), tc_sent.empty() ? "?" : tc_sent[0].str().c_str(),
-      static_cast<long long>(arrived_keyframes), static_cast<long long>(arrived_infos),
-      poses.size(), fixes.tracking, test::ScriptNumber(log, "ground_cpu_s"),
-      test::ScriptNumber(log, "air_cpu_s"), ugv.c_str(), agent_line.c_str());
+      ipt_drop.c_str(), static_cast<long long>(arrived_keyframes),
+      static_cast<long long>(arrived_parts), static_cast<long long>(arrived_infos), poses.size(),
+      fixes.tracking, test::ScriptNumber(log, "ground_cpu_s"), test::ScriptNumber(log, "air_cpu_s"),
+      ugv.c_str(), agent_line.c_str());
   RecordProperty("sent_keyframes", static_cast<int>(sent_keyframes));
   RecordProperty("sent_camera_infos", static_cast<int>(sent_infos));
   RecordProperty("arrived_keyframes", static_cast<int>(arrived_keyframes));
+  RecordProperty("sent_parts", static_cast<int>(sent_parts));
+  RecordProperty("arrived_parts", static_cast<int>(arrived_parts));
   RecordProperty("max_camera_window_bytes", static_cast<int>(max_camera_window));
   RecordProperty("max_wall_window_bytes", static_cast<int>(max_wall_window));
   RecordProperty("tracking", fixes.tracking);
 
   // Packets cross the link and the server keeps working on them, and fixes
-  // arrive. A camera_info is one IP packet (90% cross); a keyframe of ~60 kB
-  // would be ~43 (0.9^43: 1% cross whole, as LCM has no retransmission or
-  // FEC), so air_agent sends 12 kB packets (9 fragments: 39% cross) at 2 Hz
-  // (fewer than two of 20 crossing: p < 0.002).
+  // arrive. A camera_info is one IP packet (90% cross); a keyframe of ~30 kB
+  // sent whole would be ~21 (0.9^21: 11% cross, as LCM has no retransmission
+  // or FEC), so air_agent splits it into parts of one IP packet each: ~90% of
+  // the keypoints cross, and a keyframe is lost only with its part 0 (10%).
   EXPECT_GT(arrived_infos, 0) << "no camera_info crossed the link\n" << all;
   EXPECT_NE(agent_line.find("uav1: "), std::string::npos) << "the server never saw uav1\n" << all;
   EXPECT_FALSE(poses.empty()) << "ground_server published no relative pose\n" << all;
@@ -643,7 +661,7 @@ exit 0
 
   // The restarted server estimates with them, the UAV sending nothing.
   const std::string agent_line = test::LastLineWith(log2, "] uav1: ");
-  EXPECT_NE(agent_line.find("keyframes 0 received"), std::string::npos) << agent_line;
+  EXPECT_NE(agent_line.find("packets 0 received"), std::string::npos) << agent_line;
   const std::vector<ReceivedPose> poses = RelativePoses(test::ReadCapture(tmp / "cap"), "uav1");
   const size_t restart = RestartIndex(poses);
   ASSERT_LT(restart + 3, poses.size()) << "too few relative poses after the restart\n" << all;
