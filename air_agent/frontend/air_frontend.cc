@@ -18,6 +18,17 @@ void AirFrontend::Options::Check() const {
   CheckOption(max_part_bytes >= 0, "max_part_bytes", "must be >= 0 (0: keyframes are not split)");
 }
 
+namespace {
+
+/// The governor's options, its bucket sized for keyframes at the selector's period.
+BandwidthGovernor::Options GovernorOptions(const AirFrontend::Options& options) {
+  BandwidthGovernor::Options g = options.governor;
+  g.keyframe_interval_s = options.keyframes.period_s;
+  return g;
+}
+
+}  // namespace
+
 AirFrontend::AirFrontend(std::string agent, const Options& options,
                          const CameraCalibration& calibration, const FeatureExtractor* features,
                          const GlobalDescriptorExtractor* global)
@@ -28,7 +39,7 @@ AirFrontend::AirFrontend(std::string agent, const Options& options,
       features_(features),
       global_(global),
       selector_(options.keyframes),
-      governor_(options.governor,
+      governor_(GovernorOptions(options),
                 [this](int keypoints, ArrayEncoding encoding) {
                   return KeyframeLinkBytes(keypoints, encoding);
                 }),

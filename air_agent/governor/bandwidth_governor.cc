@@ -21,6 +21,8 @@ void BandwidthGovernor::Options::Check() const {
                 "has unknown encoding '" + name + "' (float32, float16, int8, bits4)");
   }
   CheckOption(window_s > 0.0, "window_s", "must be > 0");
+  CheckOption(std::isfinite(keyframe_interval_s) && keyframe_interval_s >= 0.0,
+              "keyframe_interval_s", "must be >= 0 (0 = one window)");
 }
 
 BandwidthGovernor::BandwidthGovernor(const Options& options, PacketBytesFn packet_bytes)
@@ -34,17 +36,32 @@ BandwidthGovernor::BandwidthGovernor(const Options& options, PacketBytesFn packe
   tokens_ = static_cast<double>(window_budget_bytes_);
 }
 
+double BandwidthGovernor::BucketDepth() {
+  if (bucket_depth_ >= 0) return bucket_depth_;
+  const double window = static_cast<double>(window_budget_bytes_);
+  bucket_depth_ = window;
+  if (options_.keyframe_interval_s > 0) {
+    const double share = window * options_.keyframe_interval_s / options_.window_s;
+    // Never below the smallest keyframe (and the reserve), or none would fit.
+    const double smallest = static_cast<double>(
+        packet_bytes_(std::min(options_.min_keypoints, options_.max_keypoints), encodings_.back()) +
+        reserve_bytes_);
+    bucket_depth_ = std::min(window, std::max(share, smallest));
+  }
+  return bucket_depth_;
+}
+
 void BandwidthGovernor::Refill(int64_t t_ns) {
   if (!started_) {
     started_ = true;
     last_refill_ns_ = t_ns;
+    tokens_ = BucketDepth();
     return;
   }
   if (t_ns <= last_refill_ns_) return;
   const double rate_bytes_per_ns = static_cast<double>(window_budget_bytes_) / window_ns_;
-  tokens_ =
-      std::min<double>(window_budget_bytes_,
-                       tokens_ + rate_bytes_per_ns * static_cast<double>(t_ns - last_refill_ns_));
+  tokens_ = std::min<double>(
+      BucketDepth(), tokens_ + rate_bytes_per_ns * static_cast<double>(t_ns - last_refill_ns_));
   last_refill_ns_ = t_ns;
 }
 

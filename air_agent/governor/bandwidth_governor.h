@@ -38,6 +38,12 @@ class BandwidthGovernor {
     /// fragments do, so on a lossy radio (e.g. 10% loss: 0.9^43 = 1% of 60 kB
     /// packets arrive, 0.9^8 = 43% of 12 kB ones) smaller packets carry more.
     int64_t max_packet_bytes = 0;
+    /// The interval keyframes are due at (s; AirFrontend sets it from
+    /// keyframes.period_s). The token bucket then holds one interval's share
+    /// of the budget (at least the smallest packet), so keyframes at that
+    /// interval share the budget evenly instead of the first after a pause
+    /// taking a whole window and the next ones waiting. 0: one window.
+    double keyframe_interval_s = 0.0;
 
     template <class V>
     void VisitFields(V& v) {
@@ -77,7 +83,10 @@ class BandwidthGovernor {
   /// Keyframe plans leave this many bytes of every window free, for small
   /// messages the link must always carry (camera info: without it the
   /// ground can use no keyframe at all).
-  void SetReserve(int64_t bytes) { reserve_bytes_ = bytes; }
+  void SetReserve(int64_t bytes) {
+    reserve_bytes_ = bytes;
+    bucket_depth_ = -1.0;  // holds the reserve too
+  }
 
   /// Bytes sent in the trailing window ending at t_ns.
   int64_t BytesInWindow(int64_t t_ns);
@@ -90,6 +99,8 @@ class BandwidthGovernor {
  private:
   bool Fits(int64_t t_ns, int64_t bytes);
   void Refill(int64_t t_ns);
+  /// Most tokens the bucket holds (bytes).
+  double BucketDepth();
 
   Options options_;
   PacketBytesFn packet_bytes_;
@@ -97,6 +108,7 @@ class BandwidthGovernor {
   int64_t window_ns_ = 0;
   int64_t window_budget_bytes_ = 0;
   double tokens_ = 0.0;
+  double bucket_depth_ = -1.0;  ///< computed on first use (needs packet_bytes_)
   int64_t reserve_bytes_ = 0;
   int64_t last_refill_ns_ = 0;
   bool started_ = false;

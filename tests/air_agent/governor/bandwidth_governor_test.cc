@@ -153,6 +153,45 @@ TEST(BandwidthGovernorTest, NeverExceedsBudgetInAnyWindow) {
   }
 }
 
+TEST(BandwidthGovernorTest, KeyframesAtTheirIntervalShareTheBudgetEvenly) {
+  // 0.4 Mbit/s = 50 kB per second for keyframes due every 0.5 s: a full int8
+  // keyframe (~74 kB) fits neither, so each gets fewer keypoints.
+  BandwidthGovernor::Options o;
+  o.budget_mbps = 0.4;
+  o.min_keypoints = 128;
+  std::vector<BandwidthGovernor::Plan> one_window;
+  {
+    BandwidthGovernor g(o, ModelBytes);
+    RunKeyframes(g, 2.0, 20, &one_window);
+  }
+  o.keyframe_interval_s = 0.5;
+  BandwidthGovernor g(o, ModelBytes);
+  std::vector<BandwidthGovernor::Plan> shared;
+  const auto sent = RunKeyframes(g, 2.0, 20, &shared);
+  EXPECT_LE(MaxWindowBytes(sent), g.window_budget_bytes());
+  // With one window of tokens, a keyframe takes what two would share, and
+  // the next waits: about every other one is skipped.
+  int one_window_sent = 0;
+  for (const auto& p : one_window) one_window_sent += p.send;
+  EXPECT_LT(one_window_sent, 30);
+  // Shared: every keyframe after the first goes, each with about half a
+  // second of budget (25 kB: ~300 int8 keypoints).
+  for (size_t i = 1; i < shared.size(); ++i) {
+    ASSERT_TRUE(shared[i].send) << "keyframe " << i << ": " << shared[i].gave_up;
+    EXPECT_NEAR(static_cast<double>(shared[i].bytes), 25000.0, 2500.0) << "keyframe " << i;
+  }
+}
+
+TEST(BandwidthGovernorTest, AShareBelowTheSmallestKeyframeStillSendsSome) {
+  BandwidthGovernor::Options o;
+  o.budget_mbps = ModelBytes(256, ArrayEncoding::kBits4) * 8.0 / 1e6;  // one per second
+  o.keyframe_interval_s = 0.1;  // a tenth of that per keyframe: never enough
+  BandwidthGovernor g(o, ModelBytes);
+  const auto sent = RunKeyframes(g, 10.0, 10);
+  EXPECT_GE(sent.size(), 8u);
+  EXPECT_LE(MaxWindowBytes(sent), g.window_budget_bytes());
+}
+
 TEST(BandwidthGovernorTest, OtherTrafficCountsAndIsRefusedWhenFull) {
   BandwidthGovernor::Options o;
   o.budget_mbps = 0.08;  // 10 kB per second
