@@ -1,11 +1,13 @@
 // air_agent: the UAV side. Per keyframe it sends learned keypoints and
 // descriptors, a global place descriptor and the VIO camera pose in one
-// bandwidth-budgeted LCM packet.
+// bandwidth-budgeted LCM packet (or, for a lossy link, in parts of one IP
+// packet each).
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
+#include <cstdint>
 
 #include "air_agent/agent/air_agent_app.h"
 #include "common/config/options.h"
@@ -22,6 +24,7 @@ int main(int argc, char** argv) {
       calibration;
   double speed = 1.0, budget = -1;
   int keypoints = 0;
+  int64_t max_part_bytes = -1;
   bool print_config = false;
   app.add_option("--config", config_path, "YAML options (see config/air_agent.yaml)");
   app.add_option("--dataset", dataset_dir,
@@ -37,6 +40,10 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--budget-mbps", budget, "link budget in Mbit/s (0 = unlimited)");
   app.add_option("--keypoints", keypoints, "keypoints per keyframe (top-k)");
+  app.add_option("--max-part-bytes", max_part_bytes,
+                 "split keyframes into parts of at most this many IPv4 bytes for a lossy link "
+                 "(1500: one IP packet each; 0: whole keyframes)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--model", model,
                  "XFeat ONNX model (else $AG_XFEAT_MODEL; absent: SIFT fallback)");
   app.add_option("--lcm-url", lcm_url,
@@ -55,6 +62,7 @@ int main(int argc, char** argv) {
     if (!calibration.empty()) options.calibration_file = calibration;
     if (!log_level.empty()) options.logging.level = log_level;
     if (budget >= 0) options.frontend.governor.budget_mbps = budget;
+    if (max_part_bytes >= 0) options.frontend.max_part_bytes = max_part_bytes;
     if (keypoints > 0) {
       options.features.top_k = keypoints;
       options.frontend.governor.max_keypoints = keypoints;

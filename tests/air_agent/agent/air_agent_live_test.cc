@@ -153,6 +153,17 @@ TEST(AirAgentLive, CalibrationFlagSetsTheLiveCamera) {
   EXPECT_NE(out.find("calibration_file: " + (tmp / "calibration.yaml")), std::string::npos) << out;
 }
 
+TEST(AirAgentLive, MaxPartBytesFlagSplitsKeyframes) {
+  test::TempDir tmp;
+  test::ChildProcess agent({AG_AIR_AGENT, "--max-part-bytes", "1500", "--print-config"},
+                           tmp / "out.txt");
+  const auto status = agent.WaitFor(30);
+  const std::string out = test::ReadFileText(tmp / "out.txt");
+  ASSERT_TRUE(status.has_value()) << out;
+  EXPECT_EQ(status->code, 0) << out;
+  EXPECT_NE(out.find("max_part_bytes: 1500"), std::string::npos) << out;
+}
+
 class AirAgentSignalTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(AirAgentSignalTest, DatasetModeStopsCleanlyAfterAKeyframe) {
