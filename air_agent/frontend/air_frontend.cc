@@ -142,6 +142,7 @@ AirFrontend::Output AirFrontend::ProcessFrame(int64_t t_camera_ns,
     out.link.lcm_udp += b.lcm_udp;
     out.link.datagrams += b.datagrams;
     out.link.ip += b.ip;
+    out.link.ip_packets += b.ip_packets;
   }
   if (!governor_.TryConsume(t_camera_ns, out.link.ip)) {
     // The plan's size model and the packet disagree: never exceed the budget.

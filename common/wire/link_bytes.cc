@@ -29,6 +29,7 @@ LinkBytes LcmLinkBytes(const std::string& channel, int64_t encoded_size, int mtu
     out.datagrams = 1;
     out.lcm_udp = kShortHeader + body;
     out.ip = IpBytes(out.lcm_udp, mtu);
+    out.ip_packets = (out.ip - out.lcm_udp - kUdpHeader) / kIpHeader;
     return out;
   }
   out.datagrams = (body + kFragmentMaxPayload - 1) / kFragmentMaxPayload;
@@ -38,6 +39,8 @@ LinkBytes LcmLinkBytes(const std::string& channel, int64_t encoded_size, int mtu
                                                 : body - (out.datagrams - 1) * kFragmentMaxPayload;
     out.ip += IpBytes(kLongHeader + chunk, mtu);
   }
+  // Every IP packet adds one IP header, every datagram one UDP header.
+  out.ip_packets = (out.ip - out.lcm_udp - out.datagrams * kUdpHeader) / kIpHeader;
   return out;
 }
 

@@ -7,10 +7,11 @@ namespace ag {
 
 /// Bytes that one LCM publish puts on the link, by layer.
 struct LinkBytes {
-  int64_t payload = 0;    ///< the encoded LCM message
-  int64_t lcm_udp = 0;    ///< UDP payloads LCM sends (its headers + channel + message)
-  int64_t datagrams = 0;  ///< UDP datagrams (LCM fragments)
-  int64_t ip = 0;         ///< IPv4 bytes incl. UDP/IP headers and IP fragmentation at `mtu`
+  int64_t payload = 0;     ///< the encoded LCM message
+  int64_t lcm_udp = 0;     ///< UDP payloads LCM sends (its headers + channel + message)
+  int64_t datagrams = 0;   ///< UDP datagrams (LCM fragments)
+  int64_t ip = 0;          ///< IPv4 bytes incl. UDP/IP headers and IP fragmentation at `mtu`
+  int64_t ip_packets = 0;  ///< IPv4 packets (fragments); the message is lost if any one is
 };
 
 /// Exact byte accounting of LCM's UDP multicast transport (LCM 1.3, Linux):

@@ -159,8 +159,7 @@ int main(int argc, char** argv) {
     const std::vector<int64_t> parts =
         ag::EncodedPartSizes("uav0", "cam0", "xfeat", n, 64, 512, f, cap);
     for (int64_t size : parts) split_ip += ag::LcmLinkBytes(channel, size).ip;
-    // Every IP packet adds a 20-byte header, every datagram an 8-byte UDP one.
-    const int64_t ip_packets = (whole.ip - whole.lcm_udp - 8 * whole.datagrams) / 20;
+    const int64_t ip_packets = whole.ip_packets;
     for (double loss : {0.01, 0.05, 0.1, 0.2}) {
       const double whole_arrives = std::pow(1 - loss, static_cast<double>(ip_packets));
       const double usable = parts.size() > 1 ? 1 - loss * loss : 1 - loss;

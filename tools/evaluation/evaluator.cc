@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <deque>
+#include <random>
 
 #include "common/config/options.h"
 #include "common/geometry/tum_io.h"
@@ -89,6 +90,7 @@ void EvaluateOptions::Check() const {
   CheckOption(window_size >= 1, "window_size", "must be >= 1");
   CheckOption(estimate_period_s > 0, "estimate_period_s", "must be > 0");
   CheckOption(max_duration_s >= 0, "max_duration_s", "must be >= 0");
+  CheckOption(link_loss >= 0 && link_loss < 1, "link_loss", "must be in [0, 1)");
 }
 
 EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options,
@@ -257,6 +259,22 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
     }
   };
 
+  // A UAV keyframe as the ground joined it, into the place database.
+  std::mt19937_64 link_rng(options.link_loss_seed);
+  std::bernoulli_distribution link_loss(options.link_loss);
+  auto store = [&](const AirAgentState& s, AgentRecord& rec, KeyframeAssembler::Joined& joined) {
+    if (!joined.usable) return;  // no global descriptor arrived
+    const int64_t seq = joined.keyframe.seq;
+    const int64_t keypoints = static_cast<int64_t>(joined.keyframe.features.size());
+    const PlaceDb::InsertResult ins = db.Insert(std::move(joined.keyframe));
+    if (!ins.success) {
+      spdlog::warn("{}: keyframe {} not stored: {}", s.name, seq, ins.reason);
+      return;
+    }
+    ++rec.keyframes_stored;
+    rec.keypoints_stored += keypoints;
+  };
+
   // Handles pending ground items whose pose is now known, in time order.
   auto drain_pending = [&]() {
     while (!pending.empty()) {
@@ -322,9 +340,21 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
             frame.t_ns, [&] { return LoadImage(frame, cv::IMREAD_UNCHANGED); }, vio.T);
         if (out.features_ms > 0) report.timing.air_features_per_frame.push_back(out.features_ms);
         if (!out.gave_up.empty()) spdlog::debug("{}: {}", s.name, out.gave_up);
+        const double t_s = 1e-9 * static_cast<double>(frame.t_ns);
+        for (KeyframeAssembler::Joined& joined : s.assembler.Expire(t_s)) store(s, rec, joined);
         if (!out.keyframe) break;
-        // Through the wire: encode to bytes, decode and join as the ground would.
+        // Through the wire: encode to bytes, lose IP packets as the link
+        // would, decode and join what arrives as the ground would.
         for (const aglcm::air_keyframe_t& packet : out.packets) {
+          const LinkBytes b =
+              LcmLinkBytes(s.frontend->channel(), packet.getEncodedSize(), options.air.mtu);
+          rec.ip_packets += b.ip_packets;
+          int64_t lost = 0;
+          for (int64_t i = 0; i < b.ip_packets && options.link_loss > 0; ++i) {
+            lost += link_loss(link_rng) ? 1 : 0;
+          }
+          rec.ip_packets_lost += lost;
+          if (lost > 0) continue;
           std::vector<uint8_t> bytes(packet.getEncodedSize());
           packet.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
           aglcm::air_keyframe_t received;
@@ -334,12 +364,9 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
           DecodedKeyframe decoded = DecodeKeyframe(received);
           if (!decoded.ok) throw std::logic_error("evaluator: " + decoded.error);
           std::string error;
-          for (KeyframeAssembler::Joined& joined : s.assembler.Add(
-                   std::move(decoded), 1e-9 * static_cast<double>(frame.t_ns), &error)) {
-            const int64_t seq = joined.keyframe.seq;
-            const PlaceDb::InsertResult ins = db.Insert(std::move(joined.keyframe));
-            if (!ins.success)
-              spdlog::warn("{}: keyframe {} not stored: {}", s.name, seq, ins.reason);
+          for (KeyframeAssembler::Joined& joined :
+               s.assembler.Add(std::move(decoded), t_s, &error)) {
+            store(s, rec, joined);
           }
           if (!error.empty()) throw std::logic_error("evaluator: " + error);
         }

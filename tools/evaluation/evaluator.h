@@ -33,6 +33,11 @@ struct EvaluateOptions {
   PlaceDb::Options place_db;                  ///< UAV keyframe database
   EstimatorOptions estimator;                 ///< matching, RANSAC, stages, gate
   double max_duration_s = 0.0;                ///< stop after this much data (0 = all)
+  /// Probability that an IP packet of the air link is lost, independently
+  /// (a keyframe message is lost with any of its packets; camera info is
+  /// not modelled). Seeded: a run is reproducible.
+  double link_loss = 0.0;
+  uint64_t link_loss_seed = 1;
 
   template <class V>
   void VisitFields(V& v) {
@@ -47,6 +52,8 @@ struct EvaluateOptions {
     v("place_db", place_db);
     v("estimator", estimator);
     v("max_duration_s", max_duration_s);
+    v("link_loss", link_loss);
+    v("link_loss_seed", link_loss_seed);
   }
   void Check() const;
 };

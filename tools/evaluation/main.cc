@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -22,7 +23,8 @@ int main(int argc, char** argv) {
   std::string encoding, solver;
   double budget = -1;
   bool no_stage1 = false, no_reprojection = false, no_consistency = false, no_plots = false;
-  double duration = 0;
+  double duration = 0, link_loss = -1;
+  int64_t max_part_bytes = -1;
   app.add_option("--dataset", dataset_dir, "dataset folder (shared/spec/dataset.md)")->required();
   app.add_option("--config", config_path,
                  "YAML overriding evaluation options: keys as in config/ground_server.yaml "
@@ -33,6 +35,10 @@ int main(int argc, char** argv) {
   app.add_option("--encoding", encoding,
                  "override: descriptor encoding float32|float16|int8|bits4");
   app.add_option("--budget-mbps", budget, "override: air link budget in Mbit/s (0 = unlimited)");
+  app.add_option("--link-loss", link_loss,
+                 "override: probability that an IP packet of the air link is lost (0-1)");
+  app.add_option("--max-part-bytes", max_part_bytes,
+                 "override: split keyframes into parts of at most this many IPv4 bytes (0: whole)");
   app.add_option("--solver", solver, "override: initial solver four_dof|epnp");
   app.add_flag("--no-stage1", no_stage1, "ablation: skip the UGV window BA (r_GC)");
   app.add_flag("--no-reprojection", no_reprojection, "ablation: stage 2 without r_CGCA");
@@ -56,6 +62,8 @@ int main(int argc, char** argv) {
     }
     if (!encoding.empty()) options.air.governor.encodings = {encoding};
     if (budget >= 0) options.air.governor.budget_mbps = budget;
+    if (link_loss >= 0) options.link_loss = link_loss;
+    if (max_part_bytes >= 0) options.air.max_part_bytes = max_part_bytes;
     if (!solver.empty()) options.estimator.ransac.solver = solver;
     if (no_stage1) options.estimator.use_stage1 = false;
     if (no_reprojection) options.estimator.stage2.use_reprojection = false;
@@ -85,6 +93,11 @@ int main(int argc, char** argv) {
     std::ofstream(prefix + "report.json") << result.report.dump(2) << "\n";
     ag::WriteTrajectoryOutputs(dataset, result, prefix, !no_plots);
     for (const auto& [name, agent] : result.report["agents"].items()) {
+      const nlohmann::json& link = agent["link"];
+      spdlog::info("{}: link: {} of {} IP packets lost; {} keyframes stored, {} keypoints", name,
+                   link["ip_packets_lost"].get<int64_t>(), link["ip_packets"].get<int64_t>(),
+                   link["keyframes_stored"].get<int64_t>(),
+                   link["keypoints_stored"].get<int64_t>());
       if (agent["final"]["translation_error_m"].is_null()) {
         spdlog::info("{}: {} packets, {:.3f} Mbps mean, {} fixes, no final error", name,
                      agent["packets_sent"].get<int64_t>(),

@@ -110,6 +110,11 @@ nlohmann::json MakeReport(const ReportInput& in) {
     const Bandwidth bw = ComputeBandwidth(rec.packets);
     a["bandwidth_mbps"] = {{"mean", bw.mean_mbps}, {"max_1s", bw.max_1s_mbps}};
     a["fixes"] = rec.fixes.size();
+    // Beyond the spec: what crossed the (simulated) link.
+    a["link"] = {{"ip_packets", rec.ip_packets},
+                 {"ip_packets_lost", rec.ip_packets_lost},
+                 {"keyframes_stored", rec.keyframes_stored},
+                 {"keypoints_stored", rec.keypoints_stored}};
     if (!rec.fixes.empty() && rec.first_packet_t_ns) {
       a["time_to_first_fix_s"] =
           1e-9 * static_cast<double>(rec.fixes.front().t_ns - *rec.first_packet_t_ns);

@@ -34,8 +34,12 @@ PoseError FourDofError(const Pose& estimate, const Pose& truth);
 /// Per air agent, what the run recorded.
 struct AgentRecord {
   int64_t packets_sent = 0;
-  int64_t bytes_sent = 0;  ///< LCM UDP payload bytes (what LCM puts on the link)
-  int64_t bytes_ip = 0;    ///< with UDP/IP headers and IP fragmentation
+  int64_t bytes_sent = 0;        ///< LCM UDP payload bytes (what LCM puts on the link)
+  int64_t bytes_ip = 0;          ///< with UDP/IP headers and IP fragmentation
+  int64_t ip_packets = 0;        ///< IPv4 packets of the keyframe messages
+  int64_t ip_packets_lost = 0;   ///< of those, lost (EvaluateOptions::link_loss)
+  int64_t keyframes_stored = 0;  ///< UAV keyframes (joined from what arrived) in the database
+  int64_t keypoints_stored = 0;  ///< their keypoints
   std::vector<std::pair<int64_t, int64_t>> packets;  ///< (t_ns, bytes) for bandwidth windows
   std::optional<int64_t> first_packet_t_ns;
   struct Fix {

@@ -13,6 +13,7 @@ TEST(LinkBytesTest, SmallMessageIsOneDatagram) {
   EXPECT_EQ(b.lcm_udp, 8 + 12 + 1000);
   // 1028 bytes of UDP datagram fit one 1500-byte IP packet.
   EXPECT_EQ(b.ip, 1020 + 8 + 20);
+  EXPECT_EQ(b.ip_packets, 1);
 }
 
 TEST(LinkBytesTest, FragmentationBoundary) {
@@ -31,7 +32,12 @@ TEST(LinkBytesTest, IpFragmentationAddsHeaders) {
   // split in 1480-byte IP fragments: 7 packets.
   const LinkBytes b = LcmLinkBytes("C", 10000);
   EXPECT_EQ(b.ip, 10018 + 7 * 20);
+  EXPECT_EQ(b.ip_packets, 7);
   EXPECT_GT(LcmLinkBytes("C", 10000, 576).ip, b.ip);
+  // Two LCM fragments (datagrams) of 65507 and ~34.7 kB: 45 + 24 IP packets.
+  const LinkBytes two = LcmLinkBytes("C", 100000);
+  EXPECT_EQ(two.datagrams, 2);
+  EXPECT_EQ(two.ip_packets, (65507 + 8 + 1479) / 1480 + (100002 - 65487 + 20 + 8 + 1479) / 1480);
 }
 
 TEST(EncodingTest, NamesRoundTrip) {

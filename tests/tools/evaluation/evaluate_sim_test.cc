@@ -103,5 +103,36 @@ TEST(EvaluateSim, NoFalseFixWhenTheUavNeverSeesTheUgvArea) {
   }
 }
 
+TEST(EvaluateSim, SplitKeyframesKeepFixingOnALossyLink) {
+  AG_REQUIRE_SHARED(model, "models/xfeat.onnx");
+  test::TempDir tmp;
+  Simulation(SmallScenario(9.0), 3).Write(tmp / "ds");
+  const Dataset dataset = ReadDataset(tmp / "ds");
+  // 10% of the IP packets lost: a whole 1024-keypoint keyframe (~52
+  // packets) crosses 0.4% of the time, one part of one packet 90%.
+  EvaluateOptions whole = XFeatOptions(model);
+  whole.link_loss = 0.1;
+  EvaluateOptions split = whole;
+  split.air.max_part_bytes = 1500;
+  const nlohmann::json w = Evaluate(dataset, whole).report["agents"]["uav1"];
+  const nlohmann::json p = Evaluate(dataset, split).report["agents"]["uav1"];
+  std::printf("10%% loss: whole keyframes: %s, %d fixes; split: %s, %d fixes\n",
+              w["link"].dump().c_str(), w["fixes"].get<int>(), p["link"].dump().c_str(),
+              p["fixes"].get<int>());
+  for (const nlohmann::json* a : {&w, &p}) {
+    const double lost =
+        (*a)["link"]["ip_packets_lost"].get<double>() / (*a)["link"]["ip_packets"].get<double>();
+    EXPECT_NEAR(lost, 0.1, 0.03) << a->dump(1);
+    EXPECT_EQ((*a)["false_fixes"].get<int>(), 0);
+  }
+  const int sent = p["packets_sent"].get<int>();  // keyframes
+  EXPECT_LE(w["link"]["keyframes_stored"].get<int>(), 1);
+  EXPECT_EQ(w["fixes"].get<int>(), 0);
+  EXPECT_GE(p["link"]["keyframes_stored"].get<int>(), sent - 1);
+  EXPECT_GT(p["link"]["keypoints_stored"].get<int>(), sent * 1024 * 8 / 10);
+  EXPECT_GE(p["fixes"].get<int>(), 2);  // 3 measured (4 or more without loss)
+  EXPECT_LT(p["translation_error_m"]["median"].get<double>(), 0.2);
+}
+
 }  // namespace
 }  // namespace ag
