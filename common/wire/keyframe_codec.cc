@@ -355,14 +355,17 @@ PartCapacity FitPartCapacity(const std::string& agent, const std::string& camera
     }
     return lo;
   };
-  const int64_t first_min = EncodePart(shape, format, 0, 0, 0, 3).getEncodedSize();
+  // Every part holds at least one keypoint: PartKeypointCounts fills the
+  // middle parts only while more than `first` are left, so with first = 0
+  // the last part (global descriptor included) would get a middle part's load.
+  const int64_t first_min = EncodePart(shape, format, 0, 1, 0, 3).getEncodedSize();
   const int64_t rest_min = EncodePart(shape, format, 0, 1, 1, 3).getEncodedSize();
   if (!fits(first_min) || !fits(rest_min)) {
     throw std::invalid_argument("a keyframe part must hold at least " + std::to_string(first_min) +
-                                " encoded bytes (pose and global descriptor) and " +
+                                " encoded bytes (pose, global descriptor and one keypoint) and " +
                                 std::to_string(rest_min) + " (pose and one keypoint)");
   }
-  return {largest(true, 0), largest(false, 1)};
+  return {largest(true, 1), largest(false, 1)};
 }
 
 std::vector<int64_t> EncodedPartSizes(const std::string& agent, const std::string& camera_id,

@@ -61,7 +61,7 @@ std::vector<int> PartKeypointCounts(int keypoints, const PartCapacity& capacity)
 /// The largest part capacity (up to `max_keypoints` per part) whose encoded
 /// parts all satisfy `fits(encoded_size)`. Throws std::invalid_argument
 /// naming the smallest size that would do when not even a part with the
-/// global descriptor and no keypoint, or a middle part with one, fits.
+/// global descriptor and one keypoint, or a middle part with one, fits.
 PartCapacity FitPartCapacity(const std::string& agent, const std::string& camera_id,
                              const std::string& descriptor_type, int dim, int global_dim,
                              const PacketFormat& format, int max_keypoints,

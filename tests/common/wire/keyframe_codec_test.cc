@@ -268,6 +268,22 @@ TEST(KeyframePartsTest, FewKeypointsGoInOnePartAndTooSmallALimitIsNamed) {
   EXPECT_EQ(PartKeypointCounts(cap.first + 1, cap), (std::vector<int>{cap.first, 1}));
   EXPECT_EQ(PartKeypointCounts(cap.first + cap.rest, cap),
             (std::vector<int>{cap.first, cap.rest - cap.first, cap.first}));
+  // A part with the global descriptor and one keypoint is the smallest a
+  // limit may allow: just below it is refused, at it every part fits.
+  const auto with_global = [](int64_t limit) {
+    return [limit](int64_t size) { return size <= limit; };
+  };
+  const int64_t smallest =
+      EncodedPartSizes("uav_1", "cam0", "xfeat", 3, 64, 512, f, PartCapacity{1, 1})[0];
+  EXPECT_THROW(
+      FitPartCapacity("uav_1", "cam0", "xfeat", 64, 512, f, 1024, with_global(smallest - 1)),
+      std::invalid_argument);
+  const PartCapacity tight =
+      FitPartCapacity("uav_1", "cam0", "xfeat", 64, 512, f, 1024, with_global(smallest));
+  EXPECT_GE(tight.first, 1);
+  for (const aglcm::air_keyframe_t& p : EncodeKeyframeParts(MakeKeyframe(50, 64, 7), f, tight)) {
+    EXPECT_LE(p.getEncodedSize(), smallest) << "part " << p.part;
+  }
   // The global descriptor alone (float16, 512-D: 1 kB) does not fit 600 bytes.
   try {
     FitPartCapacity("uav_1", "cam0", "xfeat", 64, 512, f, 1024,
