@@ -76,12 +76,6 @@ std::vector<KeyframeAssembler::Joined> KeyframeAssembler::Expire(double now_s) {
   return Finish(done);
 }
 
-std::vector<KeyframeAssembler::Joined> KeyframeAssembler::Flush() {
-  std::vector<Key> done;
-  for (const auto& [k, p] : pending_) done.push_back(k);
-  return Finish(done);
-}
-
 std::vector<KeyframeAssembler::Joined> KeyframeAssembler::Finish(const std::vector<Key>& keys) {
   std::vector<Joined> out;
   for (const Key& k : keys) {

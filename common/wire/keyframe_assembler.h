@@ -41,9 +41,6 @@ class KeyframeAssembler {
   /// Keyframes whose latest part arrived more than timeout_s before `now_s`.
   std::vector<Joined> Expire(double now_s);
 
-  /// Every keyframe still waiting for parts (e.g. at shutdown).
-  std::vector<Joined> Flush();
-
   size_t pending() const { return pending_.size(); }
 
  private:

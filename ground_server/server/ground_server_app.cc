@@ -30,11 +30,12 @@ namespace ag {
 namespace fs = std::filesystem;
 using SteadyClock = std::chrono::steady_clock;
 
+namespace {
+
+/// A steady-clock time in seconds, the KeyframeAssembler's clock.
 double SteadySeconds(SteadyClock::time_point t) {
   return std::chrono::duration<double>(t.time_since_epoch()).count();
 }
-
-namespace {
 
 double SecondsSince(SteadyClock::time_point t) {
   return std::chrono::duration<double>(SteadyClock::now() - t).count();
