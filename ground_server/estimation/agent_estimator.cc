@@ -82,6 +82,7 @@ AgentEstimator::AgentEstimator(std::string agent, const EstimatorOptions& option
       options_(options),
       ugv_camera_(std::move(ugv_camera)),
       gate_(options.gate),
+      filter_(options.fusion),
       camera_rotation_(options.camera_rotation) {
   options_.Check();
 }
@@ -475,6 +476,7 @@ EstimateResult AgentEstimator::Estimate(
     recent_estimates_.pop_front();
   }
   r.covariance = s2.covariance;
+  r.T_wa_wg_single = s2.T_wa_wg;
   if (recent_estimates_.size() >= 3) {
     Eigen::Vector4d mean = Eigen::Vector4d::Zero();
     for (const auto& e : recent_estimates_) mean += e;
@@ -484,18 +486,30 @@ EstimateResult AgentEstimator::Estimate(
     scatter /= static_cast<double>(recent_estimates_.size() - 1);
     r.covariance += scatter;
   }
-  // And a floor for what neither shows: a bias common to consecutive
-  // estimates (the UGV camera's residual extrinsic error seen through the
-  // same part of the map).
-  r.covariance.diagonal() += Eigen::Vector4d(
-      std::pow(options_.bias_sigma_t_m, 2), std::pow(options_.bias_sigma_t_m, 2),
-      std::pow(options_.bias_sigma_t_m, 2), std::pow(options_.bias_sigma_yaw_deg * M_PI / 180, 2));
   r.has_covariance = s2.has_covariance;
   r.inliers = static_cast<int>(initial.inliers.size());
   r.pairs = static_cast<int>(pair_inliers.size());
   r.rms_reprojection_px = s2.rms_reprojection_px;
   for (const auto& a : air_frames) r.newest_air_t_ns = std::max(r.newest_air_t_ns, a->t_ns);
   r.gate = gate_.Offer(t_ns, r.T_wa_wg);
+  if (r.gate.publish) {
+    // The fix: this estimate fused with those accepted before it (a new fix
+    // starts over), each weighted by its covariance.
+    if (r.gate.new_fix) {
+      filter_.Reset(t_ns, r.T_wa_wg, r.covariance);
+    } else {
+      filter_.Update(t_ns, r.T_wa_wg, r.covariance);
+    }
+    r.T_wa_wg = filter_.T_wa_wg();
+    r.covariance = filter_.covariance();
+    gate_.Refine(r.T_wa_wg);
+  }
+  // And a floor for what neither shows: a bias common to consecutive
+  // estimates (the UGV camera's residual extrinsic error seen through the
+  // same part of the map), which fusing them does not average away.
+  r.covariance.diagonal() += Eigen::Vector4d(
+      std::pow(options_.bias_sigma_t_m, 2), std::pow(options_.bias_sigma_t_m, 2),
+      std::pow(options_.bias_sigma_t_m, 2), std::pow(options_.bias_sigma_yaw_deg * M_PI / 180, 2));
   r.timing.total_ms = total.ElapsedMs();
   return r;
 }

@@ -16,6 +16,7 @@
 #include "common/types/keyframe.h"
 #include "ground_server/estimation/absolute_pose.h"
 #include "ground_server/estimation/camera_rotation.h"
+#include "ground_server/estimation/fix_filter.h"
 #include "ground_server/estimation/fix_gate.h"
 #include "ground_server/estimation/refinement.h"
 #include "ground_server/matching/descriptor_matcher.h"
@@ -84,6 +85,8 @@ struct EstimatorOptions {
   Stage1Options stage1;
   Stage2Options stage2;
   FixGate::Options gate;
+  /// How the estimates the gate accepts are fused into the published fix.
+  FixFilter::Options fusion;
 
   template <class V>
   void VisitFields(V& v) {
@@ -107,6 +110,7 @@ struct EstimatorOptions {
     v("stage1", stage1);
     v("stage2", stage2);
     v("gate", gate);
+    v("fusion", fusion);
   }
   void Check() const;
 };
@@ -125,8 +129,11 @@ struct EstimateTiming {
 struct EstimateResult {
   bool success = false;  ///< an estimate was computed (published or not: see gate)
   std::string reason;    ///< why not, when !success
+  /// When published, the fix: this estimate fused with the ones accepted
+  /// before it (FixFilter); otherwise this estimate alone.
   Pose T_wa_wg = Pose::Identity();
   Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();  ///< (x, y, z, yaw), m^2 / rad^2
+  Pose T_wa_wg_single = Pose::Identity();                ///< this estimate alone, before fusion
   bool has_covariance = false;
   int inliers = 0;
   int pairs = 0;                ///< air-ground keyframe pairs that contributed
@@ -177,6 +184,7 @@ class AgentEstimator {
   std::shared_ptr<const Camera> ugv_camera_;
   std::map<std::string, std::shared_ptr<const Camera>> air_cameras_;
   FixGate gate_;
+  FixFilter filter_;
   /// The UGV camera's pose correction against the LiDAR map (camera frame,
   /// T_c_lio_c). The extrinsic error it absorbs is constant, so it is
   /// estimated over the run: by camera_rotation_ (default), or else as the

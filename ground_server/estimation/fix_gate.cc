@@ -64,6 +64,7 @@ FixGate::Decision FixGate::Offer(int64_t t_ns, const Pose& T_wa_wg) {
   const bool jump = fix_ && status_ != FixStatus::kLost;
   const int needed = jump ? options_.jump_confirmations : options_.confirmations;
   if (candidate_count_ >= needed) {
+    d.new_fix = true;
     fix_ = T_wa_wg;
     last_fix_t_ns_ = t_ns;
     candidate_.reset();
@@ -79,6 +80,10 @@ FixGate::Decision FixGate::Offer(int64_t t_ns, const Pose& T_wa_wg) {
              "awaiting confirmation " + std::to_string(candidate_count_) + "/" +
              std::to_string(needed);
   return d;
+}
+
+void FixGate::Refine(const Pose& T_wa_wg) {
+  if (fix_) fix_ = T_wa_wg;
 }
 
 FixGate::Decision FixGate::Failed(int64_t t_ns) {

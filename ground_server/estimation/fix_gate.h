@@ -46,6 +46,9 @@ class FixGate {
 
   struct Decision {
     bool publish = false;  ///< this estimate becomes the published fix
+    /// A first fix, a confirmed jump or a re-acquisition after being lost,
+    /// rather than a continuation of the current fix.
+    bool new_fix = false;
     FixStatus status = FixStatus::kInitializing;
     std::string reason;  ///< e.g. "awaiting confirmation 1/2"
   };
@@ -56,6 +59,9 @@ class FixGate {
   Decision Offer(int64_t t_ns, const Pose& T_wa_wg);
   /// Records that an estimation at t_ns failed (no fix candidate).
   Decision Failed(int64_t t_ns);
+  /// Replaces the current fix by a better value of it (the fused one), which
+  /// later estimates are then compared with. No-op without a fix.
+  void Refine(const Pose& T_wa_wg);
 
   FixStatus status() const { return status_; }
   const std::optional<Pose>& fix() const { return fix_; }

@@ -85,5 +85,25 @@ TEST(FixGateTest, LostAfterTimeoutAndReacquiredWithConfirmation) {
   EXPECT_EQ(gate.status(), FixStatus::kTracking);
 }
 
+TEST(FixGateTest, SaysWhichFixIsNewAndComparesWithTheRefinedFix) {
+  FixGate gate({});
+  gate.Offer(0, MakePose4Dof(0, 0, 0, 0));
+  gate.Offer(kS, MakePose4Dof(0, 0, 0, 0));
+  const FixGate::Decision first = gate.Offer(2 * kS, MakePose4Dof(0, 0, 0, 0));
+  ASSERT_TRUE(first.publish);
+  EXPECT_TRUE(first.new_fix);
+  const FixGate::Decision next = gate.Offer(3 * kS, MakePose4Dof(0.1, 0, 0, 0));
+  ASSERT_TRUE(next.publish);
+  EXPECT_FALSE(next.new_fix) << "a continuation of the current fix";
+  // The fused fix moves to 0.25 m; 0.5 m agrees with it, not with 0.1 m.
+  gate.Refine(MakePose4Dof(0.25, 0, 0, 0));
+  EXPECT_NEAR(gate.fix()->translation().x(), 0.25, 1e-12);
+  EXPECT_TRUE(gate.Offer(4 * kS, MakePose4Dof(0.5, 0, 0, 0)).publish);
+  // Refining without a fix does nothing.
+  FixGate empty({});
+  empty.Refine(MakePose4Dof(1, 0, 0, 0));
+  EXPECT_FALSE(empty.fix().has_value());
+}
+
 }  // namespace
 }  // namespace ag
