@@ -3,7 +3,10 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <deque>
+#include <fstream>
+#include <iomanip>
 #include <random>
 
 #include "common/config/options.h"
@@ -205,11 +208,15 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
             e.head<3>() = r.T_wa_wg.translation() - observable->translation();
             e[3] = WrapAngle(ProjectedYaw(r.T_wa_wg.linear()) - ProjectedYaw(observable->linear()));
             log.drift_free_residual = e;
+            log.truth_drift = FourDofError(*observable, *s.truth);
+            const Eigen::Vector3d p = window.back()->T_wg_c.translation();
+            log.drift_free_error_at_ugv_m = (r.T_wa_wg * p - *observable * p).norm();
           }
         }
       }
       if (r.gate.publish) {
-        report.agents[s.name].fixes.push_back({t_ns, r.T_wa_wg, log.error, log.drift_free_error});
+        report.agents[s.name].fixes.push_back(
+            {t_ns, r.T_wa_wg, log.error, log.drift_free_error, log.drift_free_error_at_ugv_m});
       }
       spdlog::debug("estimate {} t={:.1f}: {} {}", s.name, 1e-9 * (t_ns - t0),
                     r.success ? "ok" : "failed", log.reason);
@@ -234,6 +241,15 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
           };
           if (log.error && log.drift_free_error) {
             const PoseError initial = FourDofError(r.T_wa_wg_initial, *s.truth);
+            const Pose observable =
+                *ObservableTruth(dataset, *s.data, r.newest_air_t_ns, t_ns, *s.truth);
+            const PoseError initial_df = FourDofError(r.T_wa_wg_initial, observable);
+            const PoseError single_df = FourDofError(r.T_wa_wg_single, observable);
+            spdlog::debug(
+                "  T_wa_wg drift-free error: RANSAC {:.3f} m {:.3f} deg, stage 2 {:.3f} m {:.3f} "
+                "deg",
+                initial_df.translation_m, initial_df.yaw_deg, single_df.translation_m,
+                single_df.yaw_deg);
             spdlog::debug(
                 "  T_wa_wg error: RANSAC {:.3f} m {:.3f} deg, final {:.3f} m {:.3f} deg, "
                 "drift-free {:.3f} m {:.3f} deg (xyz {:+.3f} {:+.3f} {:+.3f}), {} inliers, {} "
@@ -242,6 +258,17 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
                 log.error->yaw_deg, log.drift_free_error->translation_m,
                 log.drift_free_error->yaw_deg, (*log.drift_free_residual)[0],
                 (*log.drift_free_residual)[1], (*log.drift_free_residual)[2], r.inliers, r.pairs);
+          }
+          {
+            // The correction's error against the map (see the end of Evaluate).
+            const Eigen::Matrix3d C = (dataset.ground.calibration.camera.T_body_camera.inverse() *
+                                       LidarMountOffset(dataset).inverse() * cam.T_body_camera)
+                                          .linear();
+            const Eigen::AngleAxisd a(s.estimator->camera_correction().linear().transpose() * C);
+            const Eigen::Vector3d v = a.axis() * a.angle() * 180 / M_PI;
+            spdlog::debug(
+                "  UGV camera correction vs map: {:.3f} deg (camera xyz {:+.2f} {:+.2f} {:+.2f})",
+                v.norm(), v.x(), v.y(), v.z());
           }
           const CameraError before = err(r.ugv_T_wg_c_lio);
           const CameraError after = err(r.ugv_T_wg_c_refined);
@@ -410,6 +437,56 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
 
 namespace ag {
 
+void WriteEstimatesCsv(const std::string& path, const std::vector<EstimateLog>& estimates,
+                       int64_t t0_ns) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("cannot write " + path);
+  out << "# one row per estimate; t_s from the start of the data; yaw and sd_yaw in deg; "
+         "error_* against groundtruth.yaml, drift_free_* against the relation of the two "
+         "odometry worlds at the estimate's time (drift_free_at_ugv_m: where it maps the UGV "
+         "camera), truth_drift_* between the two truths (empty without ground truth)\n";
+  out << "t_s,success,published,x,y,z,yaw_deg,sd_x,sd_y,sd_z,sd_yaw_deg,inliers,"
+         "error_t_m,error_yaw_deg,drift_free_dx,drift_free_dy,drift_free_dz,"
+         "drift_free_dyaw_deg,drift_free_at_ugv_m,truth_drift_m,truth_drift_yaw_deg,reason\n";
+  out << std::setprecision(9);
+  for (const EstimateLog& e : estimates) {
+    out << 1e-9 * static_cast<double>(e.t_ns - t0_ns) << ',' << int(e.success) << ','
+        << int(e.published);
+    if (e.success) {
+      out << ',' << e.T_wa_wg.translation().x() << ',' << e.T_wa_wg.translation().y() << ','
+          << e.T_wa_wg.translation().z() << ',' << ProjectedYaw(e.T_wa_wg.linear()) * 180 / M_PI;
+      for (int i = 0; i < 4; ++i) {
+        const double sd = std::sqrt(std::max(0.0, e.covariance(i, i)));
+        out << ',' << (i == 3 ? sd * 180 / M_PI : sd);
+      }
+      out << ',' << e.inliers;
+    } else {
+      out << ",,,,,,,,,";
+    }
+    if (e.error) {
+      out << ',' << e.error->translation_m << ',' << e.error->yaw_deg;
+    } else {
+      out << ",,";
+    }
+    if (e.drift_free_residual) {
+      const Eigen::Vector4d& r = *e.drift_free_residual;
+      out << ',' << r[0] << ',' << r[1] << ',' << r[2] << ',' << r[3] * 180 / M_PI;
+    } else {
+      out << ",,,,";
+    }
+    out << ',';
+    if (e.drift_free_error_at_ugv_m) out << *e.drift_free_error_at_ugv_m;
+    if (e.truth_drift) {
+      out << ',' << e.truth_drift->translation_m << ',' << e.truth_drift->yaw_deg;
+    } else {
+      out << ",,";
+    }
+    std::string reason = e.reason;
+    std::replace(reason.begin(), reason.end(), ',', ';');
+    out << ',' << reason << '\n';
+  }
+}
+
 void WriteTrajectoryOutputs(const Dataset& dataset, const EvaluationResult& result,
                             const std::string& out_prefix, bool plots) {
   const double t0 = 1e-9 * static_cast<double>(result.t0_ns);
@@ -427,6 +504,10 @@ void WriteTrajectoryOutputs(const Dataset& dataset, const EvaluationResult& resu
              "UAV " + name +
                  " body poses mapped into the ground world (T_wg_body) with the "
                  "published T_wa_wg in force; timestamp tx ty tz qx qy qz qw");
+    WriteEstimatesCsv(
+        out_prefix + name + "_estimates.csv",
+        result.estimates.count(name) ? result.estimates.at(name) : std::vector<EstimateLog>{},
+        result.t0_ns);
     if (!plots) continue;
     std::vector<PlotSeries> series;
     PlotSeries ugv{"UGV (odometry)", {}, 60, 160, 60};

@@ -70,6 +70,11 @@ struct EstimateLog {
   /// The estimate minus that drift-free truth, (x, y, z, yaw) in m and rad,
   /// for consistency checks against `covariance`.
   std::optional<Eigen::Vector4d> drift_free_residual;
+  /// How far that drift-free truth is from groundtruth.yaml's: the two
+  /// odometries' drift since the start, which no estimator can remove from
+  /// `error`.
+  std::optional<PoseError> truth_drift;
+  std::optional<double> drift_free_error_at_ugv_m;  ///< see AgentRecord::Fix
   Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
   bool has_covariance = false;
   int inliers = 0;
@@ -88,10 +93,16 @@ using ProgressFn = std::function<void(double done_s, double total_s)>;
 EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options,
                           const ProgressFn& progress = {});
 
+/// One row per estimate (published or not) with its covariance's standard
+/// deviations and, with ground truth, its errors: for spreadsheets and plots.
+void WriteEstimatesCsv(const std::string& path, const std::vector<EstimateLog>& estimates,
+                       int64_t t0_ns);
+
 /// Writes, per air agent, the UAV trajectory mapped into the ground world with
 /// the fix in force at each time (TUM, T_wg_body; poses before the first fix
-/// are left out), and PNG plots: trajectories (UAV truth, UAV mapped, UGV)
-/// seen from above, and the errors of the published fixes over time.
+/// are left out), every estimate (`<agent>_estimates.csv`) and PNG plots:
+/// trajectories (UAV truth, UAV mapped, UGV) seen from above, and the errors
+/// of the published fixes over time.
 void WriteTrajectoryOutputs(const Dataset& dataset, const EvaluationResult& result,
                             const std::string& out_prefix, bool plots);
 

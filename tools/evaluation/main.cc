@@ -30,7 +30,8 @@ int main(int argc, char** argv) {
                  "YAML overriding evaluation options: keys as in config/ground_server.yaml "
                  "(features, estimator, map, place_db, ...), and `air` with the options of "
                  "config/air_agent.yaml; the effective values are logged at start");
-  app.add_option("--out", out_dir, "output folder (report.json, <agent>_mapped.tum, plots)");
+  app.add_option("--out", out_dir,
+                 "output folder (report.json, <agent>_mapped.tum, <agent>_estimates.csv, plots)");
   app.add_option("--keypoints", keypoints, "override: keypoints per keyframe (both agents)");
   app.add_option("--encoding", encoding,
                  "override: descriptor encoding float32|float16|int8|bits4");

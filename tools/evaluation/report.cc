@@ -121,13 +121,14 @@ nlohmann::json MakeReport(const ReportInput& in) {
     } else {
       a["time_to_first_fix_s"] = nullptr;
     }
-    std::vector<double> t_err, yaw_err, t_err_df, yaw_err_df;
+    std::vector<double> t_err, yaw_err, t_err_df, yaw_err_df, at_ugv_df;
     int false_fixes = 0;
     for (const auto& f : rec.fixes) {
       if (f.drift_free_error) {
         t_err_df.push_back(f.drift_free_error->translation_m);
         yaw_err_df.push_back(f.drift_free_error->yaw_deg);
       }
+      if (f.drift_free_error_at_ugv_m) at_ugv_df.push_back(*f.drift_free_error_at_ugv_m);
       if (!f.error) continue;
       t_err.push_back(f.error->translation_m);
       yaw_err.push_back(f.error->yaw_deg);
@@ -146,6 +147,9 @@ nlohmann::json MakeReport(const ReportInput& in) {
       if (!t_err_df.empty()) {
         a["drift_free"] = {{"translation_error_m", StatsJson(ComputeStats(t_err_df), true)},
                            {"yaw_error_deg", StatsJson(ComputeStats(yaw_err_df), true)}};
+        if (!at_ugv_df.empty()) {
+          a["drift_free"]["translation_error_at_ugv_m"] = StatsJson(ComputeStats(at_ugv_df), true);
+        }
       }
       success = success && last.translation_m <= in.success_translation_m &&
                 last.yaw_deg <= in.success_yaw_deg;

@@ -50,6 +50,11 @@ struct AgentRecord {
     /// times (truth with the odometry drift of both agents applied): what the
     /// estimator could observe. Needs groundtruth.tum of both agents.
     std::optional<PoseError> drift_free_error;
+    /// How far the fix maps the UGV camera's position from where that
+    /// drift-free truth maps it (m): the error where the two vehicles work
+    /// together. The translation of T_wa_wg is taken at the ground world's
+    /// origin, where a yaw error moves it by the yaw times the distance.
+    std::optional<double> drift_free_error_at_ugv_m;
   };
   std::vector<Fix> fixes;  ///< published fixes only
   /// Rotation error (deg) of the UGV camera against the LiDAR map at the

@@ -7,6 +7,9 @@
 #include <Eigen/Cholesky>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
 
 #include "common/dataset/dataset.h"
 #include "tests/support/test_support.h"
@@ -61,6 +64,9 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
   EXPECT_LT(agent["yaw_error_deg"]["median"].get<double>(), 0.6);
   EXPECT_LT(agent["translation_error_m"]["max"].get<double>(), 0.5);
   EXPECT_LT(agent["final"]["yaw_error_deg"].get<double>(), 1.0);
+  // Where the vehicles are (a few metres from the ground world's origin
+  // here) the fix is as good as its translation.
+  EXPECT_LT(agent["drift_free"]["translation_error_at_ugv_m"]["median"].get<double>(), 0.2);
 
   // Consistency (NEES): for a consistent 4-DoF covariance the mean of
   // e^T P^-1 e over estimates is 4. Too large: overconfident.
@@ -77,6 +83,32 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
   RecordProperty("mean_nees", std::to_string(nees));
   EXPECT_LT(nees, 3 * 4.0) << "covariance overconfident: mean NEES " << nees;
   EXPECT_GT(nees, 4.0 / 50) << "covariance uselessly pessimistic: mean NEES " << nees;
+
+  // The per-estimate CSV: one row per estimate, published ones as many as
+  // the fixes, with their drift-free residuals.
+  const Dataset dataset = ReadDataset(tmp / "ds");
+  WriteTrajectoryOutputs(dataset, result, tmp / "out_", false);
+  std::ifstream csv(tmp / "out_uav1_estimates.csv");
+  ASSERT_TRUE(csv.good());
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line.rfind("# ", 0), 0u) << line;
+  std::getline(csv, line);
+  EXPECT_EQ(line.rfind("t_s,success,published,x,y,z,yaw_deg,", 0), 0u) << line;
+  size_t rows = 0;
+  int published = 0, with_residual = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    ASSERT_GE(cells.size(), 18u) << line;
+    published += cells[2] == "1";
+    with_residual += !cells[14].empty();
+  }
+  EXPECT_EQ(rows, result.estimates.at("uav1").size());
+  EXPECT_EQ(published, agent["fixes"].get<int>());
+  EXPECT_GE(with_residual, published);
 }
 
 TEST(EvaluateSim, NoFalseFixWhenTheUavNeverSeesTheUgvArea) {
