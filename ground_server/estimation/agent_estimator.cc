@@ -500,8 +500,12 @@ EstimateResult AgentEstimator::Estimate(
     } else {
       filter_.Update(t_ns, r.T_wa_wg, r.covariance);
     }
+    // The covariance stays this estimate's: on no_initial_covisibility the
+    // errors of successive estimates stay alike for 10-20 s, more than the
+    // filter assumes, and its own covariance was overconfident there (mean
+    // NEES over the diagonal 6.7 over 222 fixes, against 2.3 for the single
+    // estimates' own; 4 is consistent).
     r.T_wa_wg = filter_.T_wa_wg();
-    r.covariance = filter_.covariance();
     gate_.Refine(r.T_wa_wg);
   }
   // And a floor for what neither shows: a bias common to consecutive

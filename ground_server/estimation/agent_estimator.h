@@ -132,8 +132,10 @@ struct EstimateResult {
   /// When published, the fix: this estimate fused with the ones accepted
   /// before it (FixFilter); otherwise this estimate alone.
   Pose T_wa_wg = Pose::Identity();
-  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();  ///< (x, y, z, yaw), m^2 / rad^2
-  Pose T_wa_wg_single = Pose::Identity();                ///< this estimate alone, before fusion
+  /// (x, y, z, yaw), m^2 / rad^2: this estimate's (solver, scatter of recent
+  /// estimates, bias floor), also for the fused fix: a conservative bound.
+  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
+  Pose T_wa_wg_single = Pose::Identity();  ///< this estimate alone, before fusion
   bool has_covariance = false;
   int inliers = 0;
   int pairs = 0;                ///< air-ground keyframe pairs that contributed

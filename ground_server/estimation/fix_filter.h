@@ -55,7 +55,10 @@ class FixFilter {
   bool has_state() const { return t_ns_.has_value(); }
   /// The fused relation (4-DoF: rotation about z only).
   Pose T_wa_wg() const;
-  /// Its covariance (x, y, z, yaw).
+  /// Its covariance (x, y, z, yaw), as the filter models it. Where the
+  /// errors of successive estimates stay alike for longer than `weight`
+  /// allows for it is too small, so AgentEstimator publishes the estimate's
+  /// own covariance with the fused fix.
   const Eigen::Matrix4d& covariance() const { return P_; }
 
  private:
