@@ -503,8 +503,8 @@ EstimateResult AgentEstimator::Estimate(
     // The covariance stays this estimate's: on no_initial_covisibility the
     // errors of successive estimates stay alike for 10-20 s, more than the
     // filter assumes, and its own covariance was overconfident there (mean
-    // NEES over the diagonal 6.7 over 222 fixes, against 2.3 for the single
-    // estimates' own; 4 is consistent).
+    // NEES over the diagonal 6.7 over 222 fixes, against 2.5 for the same
+    // fixes with this covariance; 4 is consistent).
     r.T_wa_wg = filter_.T_wa_wg();
     gate_.Refine(r.T_wa_wg);
   }

@@ -52,7 +52,6 @@ class FixFilter {
   /// Starts over when there is no state yet or when t_ns is not after the last.
   void Update(int64_t t_ns, const Pose& T_wa_wg, const Eigen::Matrix4d& covariance);
 
-  bool has_state() const { return t_ns_.has_value(); }
   /// The fused relation (4-DoF: rotation about z only).
   Pose T_wa_wg() const;
   /// Its covariance (x, y, z, yaw), as the filter models it. Where the

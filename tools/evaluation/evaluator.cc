@@ -178,6 +178,17 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   std::optional<int64_t> last_estimate;
   int64_t ugv_id = 0;
 
+  // The UGV camera's true correction against the LiDAR map: a LiDAR mounting
+  // error moves LIO's reported body by T_off (LidarMountOffset), and the
+  // camera pose from it is off by C = T_b_c_nominal^-1 T_off^-1 T_b_c_true.
+  std::optional<Eigen::Matrix3d> true_correction;
+  if (dataset.groundtruth && dataset.groundtruth->ground_true_camera) {
+    true_correction = (dataset.ground.calibration.camera.T_body_camera.inverse() *
+                       LidarMountOffset(dataset).inverse() *
+                       dataset.groundtruth->ground_true_camera->T_body_camera)
+                          .linear();
+  }
+
   auto run_estimates = [&](int64_t t_ns) {
     for (AirAgentState& s : air) {
       const EstimateResult r = s.estimator->Estimate(t_ns, window, source);
@@ -191,6 +202,7 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
       log.inliers = r.inliers;
       log.covariance = r.covariance;
       log.has_covariance = r.has_covariance;
+      std::optional<Pose> observable;  // the drift-free truth, with ground truth
       if (r.success) {
         report.timing.estimate.push_back(r.timing.total_ms);
         report.timing.stage1.push_back(r.timing.stage1_ms);
@@ -200,8 +212,7 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
         report.timing.stage1_tracking.push_back(r.timing.stage1_tracking_ms);
         if (s.truth) {
           log.error = FourDofError(r.T_wa_wg, *s.truth);
-          const std::optional<Pose> observable =
-              ObservableTruth(dataset, *s.data, r.newest_air_t_ns, t_ns, *s.truth);
+          observable = ObservableTruth(dataset, *s.data, r.newest_air_t_ns, t_ns, *s.truth);
           if (observable) {
             log.drift_free_error = FourDofError(r.T_wa_wg, *observable);
             Eigen::Vector4d e;
@@ -239,12 +250,10 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
             const Eigen::AngleAxisd a(d.linear());
             return CameraError{a.axis() * a.angle() * 180 / M_PI, d.translation().norm()};
           };
-          if (log.error && log.drift_free_error) {
+          if (log.error && observable) {
             const PoseError initial = FourDofError(r.T_wa_wg_initial, *s.truth);
-            const Pose observable =
-                *ObservableTruth(dataset, *s.data, r.newest_air_t_ns, t_ns, *s.truth);
-            const PoseError initial_df = FourDofError(r.T_wa_wg_initial, observable);
-            const PoseError single_df = FourDofError(r.T_wa_wg_single, observable);
+            const PoseError initial_df = FourDofError(r.T_wa_wg_initial, *observable);
+            const PoseError single_df = FourDofError(r.T_wa_wg_single, *observable);
             spdlog::debug(
                 "  T_wa_wg drift-free error: RANSAC {:.3f} m {:.3f} deg, stage 2 {:.3f} m {:.3f} "
                 "deg",
@@ -260,11 +269,9 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
                 (*log.drift_free_residual)[1], (*log.drift_free_residual)[2], r.inliers, r.pairs);
           }
           {
-            // The correction's error against the map (see the end of Evaluate).
-            const Eigen::Matrix3d C = (dataset.ground.calibration.camera.T_body_camera.inverse() *
-                                       LidarMountOffset(dataset).inverse() * cam.T_body_camera)
-                                          .linear();
-            const Eigen::AngleAxisd a(s.estimator->camera_correction().linear().transpose() * C);
+            // The correction's error against the map.
+            const Eigen::AngleAxisd a(s.estimator->camera_correction().linear().transpose() *
+                                      *true_correction);
             const Eigen::Vector3d v = a.axis() * a.angle() * 180 / M_PI;
             spdlog::debug(
                 "  UGV camera correction vs map: {:.3f} deg (camera xyz {:+.2f} {:+.2f} {:+.2f})",
@@ -410,15 +417,8 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   }
   drain_pending();
 
-  // The camera's true correction against the LiDAR map: a LiDAR mounting
-  // error moves LIO's reported body by T_off (LidarMountOffset), and the
-  // camera pose from it is off by C = T_b_c_nominal^-1 T_off^-1 T_b_c_true.
-  if (dataset.groundtruth && dataset.groundtruth->ground_true_camera) {
-    const Pose T_off = LidarMountOffset(dataset);
-    const Eigen::Matrix3d C =
-        (dataset.ground.calibration.camera.T_body_camera.inverse() * T_off.inverse() *
-         dataset.groundtruth->ground_true_camera->T_body_camera)
-            .linear();
+  if (true_correction) {
+    const Eigen::Matrix3d& C = *true_correction;
     const auto angle_deg = [](const Eigen::Matrix3d& R) {
       return Eigen::AngleAxisd(R).angle() * 180 / M_PI;
     };
