@@ -226,8 +226,8 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
         }
       }
       if (r.gate.publish) {
-        report.agents[s.name].fixes.push_back(
-            {t_ns, r.T_wa_wg, log.error, log.drift_free_error, log.drift_free_error_at_ugv_m});
+        report.agents[s.name].fixes.push_back({t_ns, r.T_wa_wg, log.error, log.drift_free_error,
+                                               log.drift_free_error_at_ugv_m, log.truth_drift});
       }
       spdlog::debug("estimate {} t={:.1f}: {} {}", s.name, 1e-9 * (t_ns - t0),
                     r.success ? "ok" : "failed", log.reason);

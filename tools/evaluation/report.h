@@ -55,6 +55,10 @@ struct AgentRecord {
     /// together. The translation of T_wa_wg is taken at the ground world's
     /// origin, where a yaw error moves it by the yaw times the distance.
     std::optional<double> drift_free_error_at_ugv_m;
+    /// groundtruth.yaml against that drift-free truth: the error an estimate
+    /// equal to the odometry worlds' relation would have. No estimator can
+    /// do better against groundtruth.yaml than this.
+    std::optional<PoseError> truth_drift;
   };
   std::vector<Fix> fixes;  ///< published fixes only
   /// Rotation error (deg) of the UGV camera against the LiDAR map at the
