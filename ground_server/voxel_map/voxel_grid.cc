@@ -48,6 +48,7 @@ VoxelIndex Unpack(uint64_t key) {
 void VoxelInsertStats::Accumulate(const VoxelInsertStats& other) {
   points_added += other.points_added;
   points_voxel_full += other.points_voxel_full;
+  points_replaced += other.points_replaced;
   points_rejected += other.points_rejected;
   points_beyond_radius += other.points_beyond_radius;
   voxels_created += other.voxels_created;
@@ -150,7 +151,7 @@ VoxelGrid::VoxelRef* VoxelGrid::CreateVoxel(uint64_t key, const VoxelIndex& voxe
     voxels_.emplace_back();
     points_.resize(points_.size() + static_cast<size_t>(max_points_));
   }
-  voxels_[slot] = VoxelInfo{key, scan_counter_};
+  voxels_[slot] = VoxelInfo{key, scan_counter_, 0};
   UpdateSkipBlocks(voxel, +1);
   bounds_lo_ = bounds_lo_.cwiseMin(voxel);
   bounds_hi_ = bounds_hi_.cwiseMax(voxel);
@@ -206,12 +207,19 @@ void VoxelGrid::AddPoints(const Eigen::Vector3f* points_in_wg, size_t count,
       ref = CreateVoxel(key, voxel);
       ++stats->voxels_created;
     }
-    voxels_[ref->slot].last_update = scan_counter_;
+    VoxelInfo& info = voxels_[ref->slot];
+    info.last_update = scan_counter_;
+    Eigen::Vector3f* stored = &points_[static_cast<size_t>(ref->slot) * max_points_];
     if (ref->count < static_cast<uint32_t>(max_points_)) {
-      points_[static_cast<size_t>(ref->slot) * max_points_ + ref->count] = p;
+      stored[ref->count] = p;
       ++ref->count;
       ++num_points_;
       ++stats->points_added;
+    } else if (options_.keep_latest) {
+      // Points are written in arrival order, so the oldest is a ring cursor.
+      stored[info.oldest] = p;
+      info.oldest = (info.oldest + 1) % static_cast<uint32_t>(max_points_);
+      ++stats->points_replaced;
     } else {
       ++stats->points_voxel_full;
     }

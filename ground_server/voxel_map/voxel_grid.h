@@ -5,7 +5,9 @@
 // Paper, "Pixel-Point Correspondence": following iVox (Faster-LIO), voxels
 // exist only where points are, found through a hash table keyed by the
 // integer voxel coordinates; voxel size 0.1 m. Each voxel keeps up to
-// max_points_per_voxel points; the nearest neighbour of a query point is
+// max_points_per_voxel points (iVox ignores later ones; with keep_latest a
+// full voxel replaces its oldest point instead); the nearest neighbour of a
+// query point is
 // searched over its voxel and the 6 / 18 / 26 neighbouring ones.
 //
 // Memory is bounded by two eviction rules, both applied at the end of each
@@ -59,7 +61,8 @@ struct NearestResult {
 /// What one inserted scan did to the grid.
 struct VoxelInsertStats {
   size_t points_added = 0;          ///< stored in a voxel
-  size_t points_voxel_full = 0;     ///< fell in a voxel already holding max points
+  size_t points_voxel_full = 0;     ///< fell in a full voxel and were ignored
+  size_t points_replaced = 0;       ///< replaced a full voxel's oldest point (keep_latest)
   size_t points_rejected = 0;       ///< non-finite or outside the key range (+-104 km at 0.1 m)
   size_t points_beyond_radius = 0;  ///< farther than eviction_radius_m from the sensor
   size_t voxels_created = 0;
@@ -74,6 +77,14 @@ class VoxelGrid {
   struct Options {
     double voxel_size_m = 0.1;      ///< voxel edge (m); paper: 0.1
     int max_points_per_voxel = 10;  ///< points kept per voxel; later ones are ignored (iVox)
+    /// A full voxel replaces its oldest point with a new one instead of
+    /// ignoring it, so the map holds what the LiDAR saw last. Odometry
+    /// drifts: the points a voxel got first, often from far away and long
+    /// ago, sit where the odometry of that time put them, and the map near
+    /// the vehicle then disagrees with its current pose by the drift since.
+    /// Off by default: over 10 simulated seeds it helped `covisible` but not
+    /// `no_initial_covisibility` (README, "Accuracy").
+    bool keep_latest = false;
     /// Voxel-count cap (LRU eviction). Memory is ~240 bytes per voxel with
     /// 10 points per voxel (map_bench), so ~120 MB at the default cap.
     int max_voxels = 500000;
@@ -90,6 +101,7 @@ class VoxelGrid {
     void VisitFields(V& v) {
       v("voxel_size_m", voxel_size_m);
       v("max_points_per_voxel", max_points_per_voxel);
+      v("keep_latest", keep_latest);
       v("max_voxels", max_voxels);
       v("eviction_radius_m", eviction_radius_m);
       v("neighborhood", neighborhood);
@@ -191,6 +203,7 @@ class VoxelGrid {
   struct VoxelInfo {
     uint64_t key = kFreeSlot;  ///< kFreeSlot marks a free slot
     uint64_t last_update = 0;  ///< scan counter of the last point received
+    uint32_t oldest = 0;       ///< the point a full voxel replaces next (keep_latest)
   };
   using MaskTable = internal::VoxelHashTable<uint64_t>;
 

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -160,6 +161,7 @@ TEST(VoxelGridTest, NearestIsExactWithinTheSearchedNeighbourhoodAndRespectsMaxDi
 TEST(VoxelGridTest, KeepsAtMostMaxPointsPerVoxelAndRejectsBadPoints) {
   VoxelGrid::Options options;
   options.max_points_per_voxel = 3;
+  ASSERT_FALSE(options.keep_latest);  // the default, as iVox
   VoxelGrid grid(options);
   std::vector<Eigen::Vector3f> points;
   for (int i = 0; i < 10; ++i) points.emplace_back(0.01f + 0.005f * i, 0.05f, 0.05f);
@@ -196,6 +198,37 @@ std::vector<Eigen::Vector3f> Patch(float x0, float y0, float z, int n) {
       points.emplace_back(x0 + 0.1f * i + 0.05f, y0 + 0.1f * j + 0.05f, z);
   }
   return points;
+}
+
+TEST(VoxelGridTest, KeepLatestReplacesAFullVoxelsOldestPoints) {
+  VoxelGrid::Options options;
+  options.max_points_per_voxel = 3;
+  options.keep_latest = true;
+  VoxelGrid grid(options);
+  const auto at = [](int i) { return Eigen::Vector3f(0.01f + 0.008f * i, 0.05f, 0.05f); };
+  std::vector<Eigen::Vector3f> first;
+  for (int i = 0; i < 5; ++i) first.push_back(at(i));
+  VoxelInsertStats stats = grid.Insert(first, Eigen::Vector3d::Zero());
+  EXPECT_EQ(stats.points_added, 3u);
+  EXPECT_EQ(stats.points_replaced, 2u);
+  EXPECT_EQ(stats.points_voxel_full, 0u);
+  EXPECT_EQ(grid.num_points(), 3u);
+  const auto sorted_x = [&grid] {
+    std::vector<float> x;
+    for (const Eigen::Vector3f& p : grid.PointsInVoxel(VoxelIndex(0, 0, 0))) x.push_back(p.x());
+    std::sort(x.begin(), x.end());
+    return x;
+  };
+  EXPECT_EQ(sorted_x(), (std::vector<float>{at(2).x(), at(3).x(), at(4).x()}));
+  // The next scan goes on replacing in arrival order, across scans.
+  stats = grid.Insert({at(5), at(6)}, Eigen::Vector3d::Zero());
+  EXPECT_EQ(stats.points_replaced, 2u);
+  EXPECT_EQ(grid.num_points(), 3u);
+  EXPECT_EQ(sorted_x(), (std::vector<float>{at(4).x(), at(5).x(), at(6).x()}));
+  // A query near the first points now finds the newest point nearest to it.
+  const NearestResult r = grid.Nearest(at(0).cast<double>());
+  ASSERT_TRUE(r.found);
+  EXPECT_EQ(r.point, at(4));
 }
 
 TEST(VoxelGridTest, CapEvictionKeepsTheCountBoundedAndDropsTheLeastRecentlyUpdated) {
