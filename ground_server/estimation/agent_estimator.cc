@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <numeric>
 #include <set>
+#include <stdexcept>
 
 #include "common/core/error.h"
 
@@ -59,6 +62,37 @@ struct CorrespondenceSource {
 
 }  // namespace
 
+std::vector<bool> StretchWithMostWeight(const std::vector<int64_t>& t_ns,
+                                        const std::vector<int>& weight, double span_s) {
+  if (t_ns.size() != weight.size()) {
+    throw std::invalid_argument("StretchWithMostWeight: " + std::to_string(weight.size()) +
+                                " weights for " + std::to_string(t_ns.size()) + " frames");
+  }
+  const size_t n = t_ns.size();
+  if (span_s <= 0 || n == 0) return std::vector<bool>(n, true);
+  const auto span_ns = static_cast<int64_t>(std::llround(span_s * 1e9));
+  std::vector<size_t> order(n);
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return t_ns[a] < t_ns[b]; });
+  // Two pointers over the frames in time: [lo, hi] is the longest stretch
+  // ending at hi that fits the span.
+  int64_t best = -1;
+  size_t best_lo = 0, best_hi = 0;
+  int64_t sum = 0;
+  for (size_t lo = 0, hi = 0; hi < n; ++hi) {
+    sum += weight[order[hi]];
+    while (t_ns[order[hi]] - t_ns[order[lo]] > span_ns) sum -= weight[order[lo++]];
+    if (sum >= best) {
+      best = sum;
+      best_lo = lo;
+      best_hi = hi;
+    }
+  }
+  std::vector<bool> keep(n, false);
+  for (size_t k = best_lo; k <= best_hi; ++k) keep[order[k]] = true;
+  return keep;
+}
+
 void EstimatorOptions::Check() const {
   CheckOption(retrieval_k >= 1, "retrieval_k", "must be >= 1");
   CheckOption(recent_covisible >= 0, "recent_covisible", "must be >= 0");
@@ -73,6 +107,8 @@ void EstimatorOptions::Check() const {
   CheckOption(min_matches >= 4, "min_matches", "must be >= 4");
   CheckOption(min_pair_inliers >= 4, "min_pair_inliers", "must be >= 4");
   CheckOption(min_inliers >= 6, "min_inliers", "must be >= 6");
+  CheckOption(std::isfinite(max_air_span_s) && max_air_span_s >= 0, "max_air_span_s",
+              "must be >= 0 (0: no limit)");
   CheckOption(track_gate_px > 0, "track_gate_px", "must be > 0");
 }
 
@@ -288,9 +324,25 @@ EstimateResult AgentEstimator::Estimate(
   if (!initial.success) return fail("initial estimate: " + initial.reason);
   r.T_wa_wg_initial = initial.T_wa_wg;
 
+  // The stretch of UAV time the estimate keeps (options_.max_air_span_s).
+  std::vector<int64_t> air_t(air_frames.size());
+  std::vector<int> air_inliers(air_frames.size(), 0);
+  for (size_t a = 0; a < air_frames.size(); ++a) air_t[a] = air_frames[a]->t_ns;
+  for (int i : initial.inliers) ++air_inliers[corr[i].air_frame];
+  const std::vector<bool> keep_frame =
+      StretchWithMostWeight(air_t, air_inliers, options_.max_air_span_s);
+  std::vector<int> inliers;
+  for (int i : initial.inliers) {
+    if (keep_frame[corr[i].air_frame]) inliers.push_back(i);
+  }
+  if (static_cast<int>(inliers.size()) < options_.min_inliers) {
+    return fail("no " + std::to_string(options_.max_air_span_s) + " s of UAV keyframes with " +
+                std::to_string(options_.min_inliers) + " inliers");
+  }
+
   // Per-pair inliers, for the consistency term.
   std::map<int, std::vector<int>> pair_inliers;
-  for (int i : initial.inliers) pair_inliers[origin[i].pair].push_back(i);
+  for (int i : inliers) pair_inliers[origin[i].pair].push_back(i);
 
   // 4. Stage 1: UGV window BA over the tracks of inlier UGV keypoints.
   step = Stopwatch();
@@ -317,7 +369,7 @@ EstimateResult AgentEstimator::Estimate(
       tracks.push_back(t);
       track_key.push_back(key);
     };
-    for (int i : initial.inliers) add_track(origin[i].ugv, origin[i].ugv_keypoint);
+    for (int i : inliers) add_track(origin[i].ugv, origin[i].ugv_keypoint);
     // More points on map planes, from the newest keyframe, so the window's
     // pose against the map is well determined even with few inliers.
     {
@@ -402,7 +454,7 @@ EstimateResult AgentEstimator::Estimate(
     }
     // Every inlier point again from the corrected camera: the keypoint's ray
     // cut with the map plane there, else at its (refined) depth.
-    for (int i : initial.inliers) {
+    for (int i : inliers) {
       const auto key = std::make_pair(origin[i].ugv, origin[i].ugv_keypoint);
       if (refined.count(key)) continue;
       const UgvKeyframe& host = *window[key.first];
@@ -431,23 +483,30 @@ EstimateResult AgentEstimator::Estimate(
 
   // 5. Stage 2: T_wa_wg and UAV poses.
   step = Stopwatch();
+  // Only the kept UAV keyframes; frame2_of maps an air_frames index to
+  // frames2's (-1: not kept).
   std::vector<AirFrame> frames2;
-  frames2.reserve(air_frames.size());
-  for (const auto& a : air_frames)
-    frames2.push_back({a->t_ns, a->T_wa_c, air_cameras_.at(a->camera_id).get()});
+  std::vector<int> frame2_of(air_frames.size(), -1);
+  for (size_t a = 0; a < air_frames.size(); ++a) {
+    if (!keep_frame[a]) continue;
+    frame2_of[a] = static_cast<int>(frames2.size());
+    frames2.push_back({air_frames[a]->t_ns, air_frames[a]->T_wa_c,
+                       air_cameras_.at(air_frames[a]->camera_id).get()});
+  }
   std::vector<AirGroundObservation> observations;
   std::vector<RayPointCorrespondence> refined_corr = corr;
-  for (int i : initial.inliers) {
+  for (int i : inliers) {
     const auto it = refined.find({origin[i].ugv, origin[i].ugv_keypoint});
     if (it != refined.end()) refined_corr[i].p_wg = it->second;
-    observations.push_back({corr[i].air_frame, refined_corr[i].p_wg, corr[i].uv});
+    observations.push_back({frame2_of[corr[i].air_frame], refined_corr[i].p_wg, corr[i].uv});
   }
   std::vector<PairEstimate> pair_estimates;
-  for (const auto& [pair, inliers] : pair_inliers) {
-    if (static_cast<int>(inliers.size()) < options_.min_pair_inliers) continue;
-    const int air = corr[inliers.front()].air_frame;
-    const Pose T_pair = RefineFourDof(initial.T_wa_wg, refined_corr, inliers, T_wa_ca);
-    pair_estimates.push_back({air, T_wa_ca[air].inverse() * T_pair, inliers.size() / 20.0});
+  for (const auto& [pair, members] : pair_inliers) {
+    if (static_cast<int>(members.size()) < options_.min_pair_inliers) continue;
+    const int air = corr[members.front()].air_frame;
+    const Pose T_pair = RefineFourDof(initial.T_wa_wg, refined_corr, members, T_wa_ca);
+    pair_estimates.push_back(
+        {frame2_of[air], T_wa_ca[air].inverse() * T_pair, members.size() / 20.0});
   }
   Stage2Options s2_options = options_.stage2;
   if (pair_estimates.empty()) s2_options.use_consistency = false;
@@ -487,18 +546,22 @@ EstimateResult AgentEstimator::Estimate(
     r.covariance += scatter;
   }
   r.has_covariance = s2.has_covariance;
-  r.inliers = static_cast<int>(initial.inliers.size());
+  r.inliers = static_cast<int>(inliers.size());
   r.pairs = static_cast<int>(pair_inliers.size());
   r.rms_reprojection_px = s2.rms_reprojection_px;
-  for (const auto& a : air_frames) r.newest_air_t_ns = std::max(r.newest_air_t_ns, a->t_ns);
+  r.oldest_air_t_ns = std::numeric_limits<int64_t>::max();
+  for (const AirFrame& a : frames2) {
+    r.newest_air_t_ns = std::max(r.newest_air_t_ns, a.t_ns);
+    r.oldest_air_t_ns = std::min(r.oldest_air_t_ns, a.t_ns);
+  }
   r.gate = gate_.Offer(t_ns, r.T_wa_wg);
   if (r.gate.publish) {
     // The fix: this estimate fused with those accepted before it (a new fix
     // starts over), each weighted by its covariance.
     if (r.gate.new_fix) {
-      filter_.Reset(t_ns, r.T_wa_wg, r.covariance);
+      filter_.Reset(t_ns, r.T_wa_wg, r.covariance, r.newest_air_t_ns);
     } else {
-      filter_.Update(t_ns, r.T_wa_wg, r.covariance);
+      filter_.Update(t_ns, r.T_wa_wg, r.covariance, r.newest_air_t_ns);
     }
     // The covariance stays this estimate's: on no_initial_covisibility the
     // errors of successive estimates stay alike for 10-20 s, more than the

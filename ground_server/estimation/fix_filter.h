@@ -24,8 +24,8 @@ class FixFilter {
  public:
   struct Options {
     bool enabled = true;  ///< off: every accepted estimate is published as it is
-    /// Random walk of the true relation (odometry drift), per sqrt(s):
-    /// 0.04 m/sqrt(s) is 0.3 m over a minute.
+    /// Random walk of the true relation (odometry drift), per sqrt(s) of
+    /// UGV plus UAV time (Update): 0.04 m/sqrt(s) is 0.3 m over a minute.
     double drift_translation_m = 0.04;
     double drift_yaw_deg = 0.05;  ///< ... yaw (deg/sqrt(s)); 0.4 deg over a minute
     /// Consecutive estimates share most of their data (the same UAV
@@ -47,10 +47,17 @@ class FixFilter {
   explicit FixFilter(const Options& options);
 
   /// Starts over from one estimate (a first fix, or a confirmed jump).
-  void Reset(int64_t t_ns, const Pose& T_wa_wg, const Eigen::Matrix4d& covariance);
+  void Reset(int64_t t_ns, const Pose& T_wa_wg, const Eigen::Matrix4d& covariance,
+             int64_t air_t_ns = 0);
   /// Fuses an estimate made at t_ns with covariance (x, y, z, yaw; m^2, rad^2).
   /// Starts over when there is no state yet or when t_ns is not after the last.
-  void Update(int64_t t_ns, const Pose& T_wa_wg, const Eigen::Matrix4d& covariance);
+  /// air_t_ns: the UAV time the estimate's relation holds at (its newest UAV
+  /// keyframe). The relation drifts with both odometries, so the random walk
+  /// runs over the UGV's time since the last estimate plus the UAV's between
+  /// the two estimates' keyframes, which jumps when an estimate is made from
+  /// keyframes of another pass.
+  void Update(int64_t t_ns, const Pose& T_wa_wg, const Eigen::Matrix4d& covariance,
+              int64_t air_t_ns = 0);
 
   /// The fused relation (4-DoF: rotation about z only).
   Pose T_wa_wg() const;
@@ -63,6 +70,7 @@ class FixFilter {
  private:
   Options options_;
   std::optional<int64_t> t_ns_;
+  int64_t air_t_ns_ = 0;
   Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
   Eigen::Matrix4d P_ = Eigen::Matrix4d::Zero();
 };

@@ -193,5 +193,32 @@ TEST_F(AgentEstimatorTest, ExplainsMissingCameraInfoAndEmptyWindow) {
   EXPECT_FALSE(r.success) << "another agent's keyframes are never used";
 }
 
+// Seconds as the nanosecond times frames carry.
+std::vector<int64_t> Seconds(std::vector<double> s) {
+  std::vector<int64_t> t;
+  for (double x : s) t.push_back(static_cast<int64_t>(x * 1e9));
+  return t;
+}
+
+TEST(StretchWithMostWeight, KeepsTheStretchWithTheMostInliers) {
+  // Two passes over the same place, 30 s apart: the second has more inliers.
+  const auto t = Seconds({2, 3, 5, 33, 34, 36, 37});
+  const std::vector<int> w = {40, 50, 10, 30, 30, 20, 25};
+  EXPECT_EQ(StretchWithMostWeight(t, w, 10.0),
+            (std::vector<bool>{false, false, false, true, true, true, true}));
+  // Any order of frames; the span is inclusive.
+  EXPECT_EQ(StretchWithMostWeight(Seconds({36, 2, 26, 12}), {5, 5, 5, 1}, 10.0),
+            (std::vector<bool>{true, false, true, false}));
+  // A tie goes to the later stretch (nearer to the UAV's present).
+  EXPECT_EQ(StretchWithMostWeight(Seconds({0, 1, 20, 21}), {10, 10, 5, 15}, 5.0),
+            (std::vector<bool>{false, false, true, true}));
+}
+
+TEST(StretchWithMostWeight, NoLimitKeepsAllAndMismatchedSizesAreRejected) {
+  EXPECT_EQ(StretchWithMostWeight(Seconds({0, 100}), {1, 1}, 0.0), (std::vector<bool>{true, true}));
+  EXPECT_TRUE(StretchWithMostWeight({}, {}, 10.0).empty());
+  EXPECT_THROW(StretchWithMostWeight(Seconds({0, 1}), {1}, 10.0), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace ag

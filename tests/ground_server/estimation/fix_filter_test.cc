@@ -91,6 +91,26 @@ TEST(FixFilterTest, DriftLetsTheFixFollowAMovingRelation) {
   EXPECT_NEAR(still.T_wa_wg().translation().x(), 0.95, 0.01);
 }
 
+TEST(FixFilterTest, AJumpInUavTimeLetsTheFixFollow) {
+  // Estimates one second apart, but the second from UAV keyframes 30 s
+  // older: the relation may have drifted by 30 s of UAV odometry, so the
+  // fix follows it much further than after one second.
+  FixFilter::Options o;
+  const Eigen::Matrix4d R = Eigen::Vector4d(0.01, 0.01, 0.01, 1e-6).asDiagonal();
+  FixFilter same(o), jump(o);
+  same.Update(0, MakePose4Dof(0, 0, 0, 0), R, 40 * kS);
+  same.Update(kS, MakePose4Dof(1, 0, 0, 0), R, 40 * kS);
+  jump.Update(0, MakePose4Dof(0, 0, 0, 0), R, 40 * kS);
+  jump.Update(kS, MakePose4Dof(1, 0, 0, 0), R, 10 * kS);
+  const double x_same = same.T_wa_wg().translation().x();
+  const double x_jump = jump.T_wa_wg().translation().x();
+  EXPECT_GT(x_jump, x_same + 0.1);
+  // The first estimate's variance 0.01 plus the random walk, 0.04^2 per
+  // second of (1 + 30) s, against the second's 0.01 / weight 0.25.
+  EXPECT_NEAR(x_jump, 0.0596 / (0.0596 + 0.04), 1e-6);
+  EXPECT_NEAR(x_same, 0.0116 / (0.0116 + 0.04), 1e-6);
+}
+
 TEST(FixFilterTest, WeightBelowOneKeepsTheCovarianceHonestForSharedData) {
   FixFilter full(NoDrift(1.0)), quarter(NoDrift(0.25));
   const Eigen::Matrix4d R = Eigen::Vector4d(0.04, 0.04, 0.04, 1e-4).asDiagonal();
