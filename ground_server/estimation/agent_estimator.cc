@@ -336,8 +336,8 @@ EstimateResult AgentEstimator::Estimate(
     if (keep_frame[corr[i].air_frame]) inliers.push_back(i);
   }
   if (static_cast<int>(inliers.size()) < options_.min_inliers) {
-    return fail("no " + std::to_string(options_.max_air_span_s) + " s of UAV keyframes with " +
-                std::to_string(options_.min_inliers) + " inliers");
+    return fail(fmt::format("no {:g} s of UAV keyframes with {} inliers", options_.max_air_span_s,
+                            options_.min_inliers));
   }
 
   // Per-pair inliers, for the consistency term.

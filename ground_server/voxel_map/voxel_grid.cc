@@ -151,7 +151,7 @@ VoxelGrid::VoxelRef* VoxelGrid::CreateVoxel(uint64_t key, const VoxelIndex& voxe
     voxels_.emplace_back();
     points_.resize(points_.size() + static_cast<size_t>(max_points_));
   }
-  voxels_[slot] = VoxelInfo{key, scan_counter_, 0};
+  voxels_[slot] = VoxelInfo{key, scan_counter_};
   UpdateSkipBlocks(voxel, +1);
   bounds_lo_ = bounds_lo_.cwiseMin(voxel);
   bounds_hi_ = bounds_hi_.cwiseMax(voxel);
@@ -207,8 +207,7 @@ void VoxelGrid::AddPoints(const Eigen::Vector3f* points_in_wg, size_t count,
       ref = CreateVoxel(key, voxel);
       ++stats->voxels_created;
     }
-    VoxelInfo& info = voxels_[ref->slot];
-    info.last_update = scan_counter_;
+    voxels_[ref->slot].last_update = scan_counter_;
     Eigen::Vector3f* stored = &points_[static_cast<size_t>(ref->slot) * max_points_];
     if (ref->count < static_cast<uint32_t>(max_points_)) {
       stored[ref->count] = p;
@@ -216,9 +215,9 @@ void VoxelGrid::AddPoints(const Eigen::Vector3f* points_in_wg, size_t count,
       ++num_points_;
       ++stats->points_added;
     } else if (options_.keep_latest) {
-      // Points are written in arrival order, so the oldest is a ring cursor.
-      stored[info.oldest] = p;
-      info.oldest = (info.oldest + 1) % static_cast<uint32_t>(max_points_);
+      // Kept in arrival order: drop the first, append the new one.
+      std::move(stored + 1, stored + max_points_, stored);
+      stored[max_points_ - 1] = p;
       ++stats->points_replaced;
     } else {
       ++stats->points_voxel_full;

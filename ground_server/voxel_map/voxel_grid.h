@@ -7,8 +7,8 @@
 // integer voxel coordinates; voxel size 0.1 m. Each voxel keeps up to
 // max_points_per_voxel points (iVox ignores later ones; with keep_latest a
 // full voxel replaces its oldest point instead); the nearest neighbour of a
-// query point is
-// searched over its voxel and the 6 / 18 / 26 neighbouring ones.
+// query point is searched over its voxel and the 6 / 18 / 26 neighbouring
+// ones.
 //
 // Memory is bounded by two eviction rules, both applied at the end of each
 // inserted scan:
@@ -203,7 +203,6 @@ class VoxelGrid {
   struct VoxelInfo {
     uint64_t key = kFreeSlot;  ///< kFreeSlot marks a free slot
     uint64_t last_update = 0;  ///< scan counter of the last point received
-    uint32_t oldest = 0;       ///< the point a full voxel replaces next (keep_latest)
   };
   using MaskTable = internal::VoxelHashTable<uint64_t>;
 

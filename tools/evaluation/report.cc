@@ -101,9 +101,10 @@ nlohmann::json MakeReport(const ReportInput& in) {
   report["dataset"] = in.dataset;
   report["config"] = in.config;
   bool success = !in.agents.empty();
-  // The same test on the drift-free error, and on an estimate equal to the
-  // odometry worlds' relation: a run that fails `success` but passes these
-  // failed because the two odometries drifted from groundtruth.yaml.
+  // The same test on the drift-free error, and on an estimate exactly equal
+  // to the odometry worlds' relation: a run that fails `success` but passes
+  // success_drift_free failed because the odometries drifted from
+  // groundtruth.yaml, not because of the estimator.
   bool success_drift_free = success;
   bool success_attainable = success;
   const auto within = [&in](const PoseError& e) {

@@ -56,8 +56,8 @@ struct AgentRecord {
     /// origin, where a yaw error moves it by the yaw times the distance.
     std::optional<double> drift_free_error_at_ugv_m;
     /// groundtruth.yaml against that drift-free truth: the error an estimate
-    /// equal to the odometry worlds' relation would have. No estimator can
-    /// do better against groundtruth.yaml than this.
+    /// exactly equal to the odometry worlds' relation would have (an inexact
+    /// one can land nearer or farther).
     std::optional<PoseError> truth_drift;
   };
   std::vector<Fix> fixes;  ///< published fixes only
