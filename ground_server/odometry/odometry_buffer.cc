@@ -117,6 +117,28 @@ PoseLookup OdometryBuffer::SensorPoseAt(int64_t t_sensor_ns, const SensorMount& 
   return out;
 }
 
+SensorTwist OdometryBuffer::SensorTwistAt(int64_t t_sensor_ns, const SensorMount& mount,
+                                          double half_window_s) const {
+  SensorTwist twist;
+  const int64_t half = static_cast<int64_t>(std::llround(half_window_s * 1e9));
+  if (half <= 0) return twist;
+  PoseLookup a = SensorPoseAt(t_sensor_ns - half, mount);
+  PoseLookup b = SensorPoseAt(t_sensor_ns + half, mount);
+  const PoseLookup at = SensorPoseAt(t_sensor_ns, mount);
+  if (!b.ok()) {
+    b = at;
+    a = SensorPoseAt(t_sensor_ns - 2 * half, mount);
+  }
+  if (!a.ok() || !b.ok() || !at.ok()) return twist;
+  const double dt = 2e-9 * static_cast<double>(half);
+  // The rotation from a to b in a's frame, brought to the sensor's at t.
+  const Eigen::AngleAxisd w(a.T.linear().transpose() * b.T.linear());
+  twist.omega = at.T.linear().transpose() * a.T.linear() * (w.axis() * (w.angle() / dt));
+  twist.v_wg = (b.T.translation() - a.T.translation()) / dt;
+  twist.ok = twist.omega.allFinite() && twist.v_wg.allFinite();
+  return twist;
+}
+
 PoseLookup OdometryBuffer::WaitForSensorPose(int64_t t_sensor_ns, const SensorMount& mount,
                                              std::chrono::nanoseconds timeout) const {
   const int64_t t_body_ns = BodyTimeNs(t_sensor_ns, mount.time_offset_s);

@@ -63,6 +63,13 @@ struct PoseLookup {
   bool ok() const { return status == PoseLookupStatus::kOk; }
 };
 
+/// A sensor's motion at one time, from the odometry.
+struct SensorTwist {
+  bool ok = false;                                  ///< false: the buffer does not cover it
+  Eigen::Vector3d omega = Eigen::Vector3d::Zero();  ///< angular velocity, sensor frame (rad/s)
+  Eigen::Vector3d v_wg = Eigen::Vector3d::Zero();   ///< velocity in wg (m/s)
+};
+
 /// Bounded, time-sorted buffer of T_wg_body poses; all methods thread-safe.
 ///
 /// Add() accepts strictly increasing timestamps only; rejected poses come back
@@ -94,6 +101,13 @@ class OdometryBuffer {
   /// T_wg_sensor at sensor time `t_sensor_ns`: the body pose at
   /// t_sensor + mount.time_offset_s composed with mount.T_body_sensor.
   PoseLookup SensorPoseAt(int64_t t_sensor_ns, const SensorMount& mount) const;
+
+  /// The sensor's motion at `t_sensor_ns`: a central difference of its
+  /// poses over +-half_window_s (a short one would amplify the odometry's
+  /// per-sample noise), or a backward one where the buffer does not reach
+  /// t + half_window_s yet.
+  SensorTwist SensorTwistAt(int64_t t_sensor_ns, const SensorMount& mount,
+                            double half_window_s = 0.1) const;
 
   /// Like SensorPoseAt, but while the answer is kWait blocks until a newer
   /// pose arrives, Close() is called or `timeout` passes; then answers with

@@ -185,5 +185,33 @@ TEST(OdometryBufferTest, OptionsCheckNamesTheField) {
   test::ExpectOptionErrorNaming("max_poses", [&] { OdometryBuffer buffer(options); });
 }
 
+TEST(OdometryBufferTest, SensorTwistIsTheMountedSensorsMotion) {
+  OdometryBuffer buffer;
+  for (int i = 0; i <= 200; ++i)
+    ASSERT_EQ(buffer.Add(At(i * kSecond / 100)), OdometryAddStatus::kAdded);
+  SensorMount mount;
+  mount.T_body_sensor.linear() =
+      Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  mount.T_body_sensor.translation() = Eigen::Vector3d(0.3, -0.1, 0.2);
+  const Eigen::Vector3d omega_world = 0.3 * Eigen::Vector3d(0.2, -0.1, 1.0).normalized();
+  auto expect_twist = [&](double t_s, double v_tolerance) {
+    const SensorTwist twist = buffer.SensorTwistAt(static_cast<int64_t>(t_s * kSecond), mount);
+    ASSERT_TRUE(twist.ok) << "t = " << t_s;
+    const Pose T_wg_s = TruePose(t_s) * mount.T_body_sensor;
+    // The body turns about a fixed world axis; the sensor sees that rate in
+    // its own frame, and its velocity has the lever arm's part.
+    EXPECT_LT((twist.omega - T_wg_s.linear().transpose() * omega_world).norm(), 1e-6) << t_s;
+    const Eigen::Vector3d v =
+        Eigen::Vector3d(1.5, 0.5, -0.1) +
+        omega_world.cross(TruePose(t_s).linear() * mount.T_body_sensor.translation());
+    EXPECT_LT((twist.v_wg - v).norm(), v_tolerance) << t_s;
+  };
+  expect_twist(1.0, 1e-4);  // central difference
+  // The buffer ends at 2 s: a backward difference, whose velocity is the
+  // mean over [1.75, 1.95] s (the lever arm's part turns by 0.06 rad).
+  expect_twist(1.95, 5e-3);
+  EXPECT_FALSE(buffer.SensorTwistAt(kSecond / 20, mount).ok) << "before the buffer's start";
+}
+
 }  // namespace
 }  // namespace ag
