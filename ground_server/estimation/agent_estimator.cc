@@ -148,6 +148,10 @@ void AgentEstimator::UpdateCameraRotation(
       o.T_wg_c_obs = window[m]->T_wg_c;
       o.f_obs = ugv_camera_->UndistortToNormalized(uv);
       o.focal_px = ugv_camera_->params().fx;
+      o.omega_host_c = host.omega_c;
+      o.v_host_wg = host.v_wg;
+      o.omega_obs_c = window[m]->omega_c;
+      o.v_obs_wg = window[m]->v_wg;
       added += camera_rotation_.Add({host.id, track_key[t].second, window[m]->id}, o) ? 1 : 0;
     }
   }
@@ -164,9 +168,20 @@ void AgentEstimator::UpdateCameraRotation(
   const Eigen::Vector3d deg = aa.axis() * aa.angle() * 180 / M_PI;
   spdlog::debug(
       "{} camera rotation: {} observations (+{}), solved in {:.1f} ms, rms {:.2f} -> {:.2f} px, "
-      "correction (camera xyz) {:+.3f} {:+.3f} {:+.3f} deg",
+      "correction (camera xyz) {:+.3f} {:+.3f} {:+.3f} deg, time offset {:+.1f} ms",
       agent_, s.observations, added, solve.ElapsedMs(), s.initial_rms_px, s.final_rms_px, deg.x(),
-      deg.y(), deg.z());
+      deg.y(), deg.z(), 1e3 * camera_rotation_.time_offset_s());
+}
+
+Pose AgentEstimator::CorrectedCameraPose(const UgvKeyframe& kf) const {
+  const double dt = camera_rotation_.time_offset_s();
+  Pose T = kf.T_wg_c;
+  if (dt != 0) {
+    const Eigen::Vector3d w = kf.omega_c * dt;
+    if (w.norm() > 0) T.linear() = T.linear() * Eigen::AngleAxisd(w.norm(), w.normalized());
+    T.translation() += kf.v_wg * dt;
+  }
+  return T * camera_correction_;
 }
 
 EstimateResult AgentEstimator::Estimate(
@@ -422,7 +437,7 @@ EstimateResult AgentEstimator::Estimate(
     std::vector<UgvWindowFrame> frames;
     frames.reserve(window.size());
     for (const auto& kf : window) {
-      frames.push_back({kf->t_ns, kf->T_wg_c * camera_correction_, ugv_camera_.get()});
+      frames.push_back({kf->t_ns, CorrectedCameraPose(*kf), ugv_camera_.get()});
     }
     const Stage1Result s1 = RunStage1(frames, tracks, options_.stage1);
     if (!s1.success) spdlog::debug("{} stage 1 skipped: {}", agent_, s1.reason);
@@ -460,7 +475,7 @@ EstimateResult AgentEstimator::Estimate(
       const UgvKeyframe& host = *window[key.first];
       const Eigen::Vector2d f =
           ugv_camera_->UndistortToNormalized(host.features.keypoints[key.second].cast<double>());
-      const Pose T_new = host.T_wg_c * camera_correction_;
+      const Pose T_new = CorrectedCameraPose(host);
       const Eigen::Vector3d ray_wg = T_new.linear() * Eigen::Vector3d(f.x(), f.y(), 1.0);
       const auto tracked = track_depth.find(key);
       double depth = tracked != track_depth.end()
@@ -477,7 +492,7 @@ EstimateResult AgentEstimator::Estimate(
       }
       if (depth > 0.1) refined[key] = T_new.translation() + depth * ray_wg;
     }
-    r.ugv_T_wg_c_refined = window.back()->T_wg_c * camera_correction_;
+    r.ugv_T_wg_c_refined = CorrectedCameraPose(*window.back());
   }
   r.timing.stage1_ms = step.ElapsedMs();
 

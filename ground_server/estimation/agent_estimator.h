@@ -28,6 +28,11 @@ struct UgvKeyframe {
   int64_t id = 0;                  ///< unique, increasing
   int64_t t_ns = 0;                ///< image time, ground clock
   Pose T_wg_c = Pose::Identity();  ///< camera pose interpolated from LIO
+  /// The camera's motion at t_ns from LIO (zero when unknown): angular
+  /// velocity in the camera frame (rad/s) and velocity in wg (m/s), for a
+  /// time-offset correction.
+  Eigen::Vector3d omega_c = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_wg = Eigen::Vector3d::Zero();
   LocalFeatures features;
   std::vector<float> global_descriptor;
   std::vector<Eigen::Vector3d> points_wg;  ///< per keypoint, meaningful where has_point
@@ -191,6 +196,9 @@ class AgentEstimator {
   /// The UGV camera's correction against the LiDAR map that stage 1 applies
   /// (on the right of the LIO camera pose; identity until it has one).
   const Pose& camera_correction() const { return camera_correction_; }
+  /// A UGV keyframe's camera pose with the calibration estimated so far
+  /// (time offset, then rotation correction) applied.
+  Pose CorrectedCameraPose(const UgvKeyframe& kf) const;
 
  private:
   /// Feeds this window's map-plane tracks to camera_rotation_ and takes its

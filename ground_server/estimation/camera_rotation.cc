@@ -1,5 +1,6 @@
 #include "ground_server/estimation/camera_rotation.h"
 
+#include <ceres/normal_prior.h>
 #include <ceres/rotation.h>
 
 #include <array>
@@ -26,7 +27,8 @@ struct RotationPriorError {
 bool AllFinite(const PlaneTrackObservation& o) {
   return o.T_wg_c_host.matrix().allFinite() && o.T_wg_c_obs.matrix().allFinite() &&
          o.f_host.allFinite() && o.f_obs.allFinite() && o.plane.allFinite() &&
-         std::isfinite(o.focal_px) && o.focal_px > 0;
+         o.omega_host_c.allFinite() && o.v_host_wg.allFinite() && o.omega_obs_c.allFinite() &&
+         o.v_obs_wg.allFinite() && std::isfinite(o.focal_px) && o.focal_px > 0;
 }
 
 }  // namespace
@@ -38,6 +40,7 @@ void CameraRotationCalibrator::Options::Check() const {
   CheckOption(prior_sigma_deg > 0, "prior_sigma_deg", "must be > 0");
   CheckOption(min_ray_plane_angle_deg >= 0 && min_ray_plane_angle_deg < 90,
               "min_ray_plane_angle_deg", "must be in [0, 90)");
+  CheckOption(time_offset_prior_sigma_s > 0, "time_offset_prior_sigma_s", "must be > 0");
   CheckOption(max_iterations > 0, "max_iterations", "must be > 0");
   CheckOption(resolve_fraction >= 0 && resolve_fraction <= 1, "resolve_fraction",
               "must be in [0, 1]");
@@ -90,20 +93,24 @@ CameraRotationCalibrator::SolveResult CameraRotationCalibrator::Solve() {
   }
   added_since_solve_ = 0;
   std::array<double, 3> d = {angle_axis_.x(), angle_axis_.y(), angle_axis_.z()};
+  double dt = time_offset_s_;
   ceres::Problem problem;
   int used = 0;
   for (const PlaneTrackObservation& o : observations_) {
-    const double scale = o.focal_px / options_.sigma_px;
-    problem.AddResidualBlock(
-        PlaneCutReprojectionError::Create(o.T_wg_c_host.linear(), o.T_wg_c_host.translation(),
-                                          o.f_host, o.plane, o.T_wg_c_obs.linear(),
-                                          o.T_wg_c_obs.translation(), o.f_obs, scale),
-        MakeLoss(options_.loss), d.data());
+    problem.AddResidualBlock(PlaneCutReprojectionError::Create(o, o.focal_px / options_.sigma_px),
+                             MakeLoss(options_.loss), d.data(), &dt);
     ++used;
   }
   problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RotationPriorError, 3, 3>(
                                new RotationPriorError(options_.prior_sigma_deg * kDegToRad)),
                            nullptr, d.data());
+  if (options_.estimate_time_offset) {
+    const Eigen::Matrix<double, 1, 1> a(1.0 / options_.time_offset_prior_sigma_s);
+    problem.AddResidualBlock(new ceres::NormalPrior(a, Eigen::Matrix<double, 1, 1>::Zero()),
+                             nullptr, &dt);
+  } else {
+    problem.SetParameterBlockConstant(&dt);
+  }
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
   so.max_num_iterations = options_.max_iterations;
@@ -115,11 +122,12 @@ CameraRotationCalibrator::SolveResult CameraRotationCalibrator::Solve() {
   result.initial_rms_px = std::sqrt(2.0 * summary.initial_cost / n_res) * options_.sigma_px;
   result.final_rms_px = std::sqrt(2.0 * summary.final_cost / n_res) * options_.sigma_px;
   const Eigen::Vector3d solved(d[0], d[1], d[2]);
-  if (!summary.IsSolutionUsable() || !solved.allFinite()) {
+  if (!summary.IsSolutionUsable() || !solved.allFinite() || !std::isfinite(dt)) {
     result.reason = "solver: " + summary.message;
     return result;
   }
   angle_axis_ = solved;
+  time_offset_s_ = dt;
   const double angle = solved.norm();
   rotation_ = angle > 0 ? Eigen::AngleAxisd(angle, solved / angle).toRotationMatrix()
                         : Eigen::Matrix3d::Identity();

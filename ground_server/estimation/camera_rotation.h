@@ -43,6 +43,11 @@ struct PlaneTrackObservation {
   Pose T_wg_c_obs = Pose::Identity();
   Eigen::Vector2d f_obs = Eigen::Vector2d::Zero();  ///< undistorted normalised coords
   double focal_px = 500;                            ///< whitening: normalised units to pixels
+  /// Each camera's motion (UgvKeyframe::omega_c, v_wg), for the time offset.
+  Eigen::Vector3d omega_host_c = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_host_wg = Eigen::Vector3d::Zero();
+  Eigen::Vector3d omega_obs_c = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_obs_wg = Eigen::Vector3d::Zero();
 };
 
 class CameraRotationCalibrator {
@@ -58,6 +63,12 @@ class CameraRotationCalibrator {
     /// Residuals of wrong UGV-UGV matches reach the track gate (8 px), so
     /// the loss is Cauchy at 1 px: Huber still lets them pull linearly.
     RobustLossOptions loss{"cauchy", 1.0};
+    /// Also estimate the camera's time offset against LIO, from how the
+    /// residuals follow the UGV's turning and speed: a camera pose taken
+    /// from LIO at the wrong time is off by the motion in between (15 ms at
+    /// 10 deg/s is 0.15 deg), which a constant rotation cannot absorb.
+    bool estimate_time_offset = true;
+    double time_offset_prior_sigma_s = 0.05;  ///< prior towards the nominal offset (s)
     int max_iterations = 10;
     /// Re-solve once the observations offered since the last solve are this
     /// fraction of all offered so far: with the uniform sample, fewer new
@@ -73,6 +84,8 @@ class CameraRotationCalibrator {
       v("prior_sigma_deg", prior_sigma_deg);
       v("min_ray_plane_angle_deg", min_ray_plane_angle_deg);
       v("loss", loss);
+      v("estimate_time_offset", estimate_time_offset);
+      v("time_offset_prior_sigma_s", time_offset_prior_sigma_s);
       v("max_iterations", max_iterations);
       v("resolve_fraction", resolve_fraction);
     }
@@ -103,6 +116,9 @@ class CameraRotationCalibrator {
   /// Rotation to apply on the right of a LIO camera pose
   /// (T_wg_c_corrected = T_wg_c * [R, 0]): R = R_c_nominal_c_true.
   const Eigen::Matrix3d& rotation() const { return rotation_; }
+  /// Seconds to add to a UGV image's time (beyond the nominal offset) to
+  /// get the LIO time of its pose; zero unless estimate_time_offset.
+  double time_offset_s() const { return time_offset_s_; }
   bool has_estimate() const { return has_estimate_; }
   int num_observations() const { return static_cast<int>(observations_.size()); }
 
@@ -120,6 +136,7 @@ class CameraRotationCalibrator {
   std::deque<std::tuple<int64_t, int, int64_t>> recent_keys_;
   Eigen::Vector3d angle_axis_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();
+  double time_offset_s_ = 0;
   bool has_estimate_ = false;
   int added_since_solve_ = 0;
 };

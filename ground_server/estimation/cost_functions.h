@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 
 #include "common/camera/camera.h"
+#include "ground_server/estimation/camera_rotation.h"
 #include "ground_server/estimation/refinement.h"
 
 namespace ag {
@@ -307,58 +308,54 @@ struct RelativePoseConsistencyError {
 ///   x_o = R_d^T R_o^T (p - t_o),
 ///   r = (x_o[0:2] / x_o[2] - f_o) * focal / sigma_px.
 /// A wrong rotation moves the cut along the plane (far, at grazing rays),
-/// so the reprojection in o misses its match. Parameter: d (3).
+/// so the reprojection in o misses its match. With a time offset dt each
+/// LIO pose is first moved along the camera's motion, to first order:
+/// R -> R Exp(omega_c dt), t -> t + v_wg dt. Parameters: d (3), dt (1).
 struct PlaneCutReprojectionError {
-  PlaneCutReprojectionError(const Eigen::Matrix3d& R_h, const Eigen::Vector3d& t_h,
-                            const Eigen::Vector2d& f_h, const Eigen::Vector4d& plane,
-                            const Eigen::Matrix3d& R_o, const Eigen::Vector3d& t_o,
-                            const Eigen::Vector2d& f_o, double scale)
-      : R_h_(R_h),
-        t_h_(t_h),
-        f_h_(f_h),
-        plane_(plane),
-        R_o_(R_o),
-        t_o_(t_o),
-        f_o_(f_o),
-        scale_(scale) {}
+  PlaneCutReprojectionError(const PlaneTrackObservation& o, double scale) : o_(o), scale_(scale) {}
 
+  /// d: the rotation correction (angle-axis, camera frame); dt: the time
+  /// offset (s), moving each camera along its motion (omega_c, v_wg).
   template <typename T>
-  bool operator()(const T* d, T* residual) const {
-    const Eigen::Matrix<T, 3, 1> f(T(f_h_.x()), T(f_h_.y()), T(1.0));
-    Eigen::Matrix<T, 3, 1> f_rotated;
-    ceres::AngleAxisRotatePoint(d, f.data(), f_rotated.data());
-    const Eigen::Matrix<T, 3, 1> ray = R_h_.cast<T>() * f_rotated;
-    const Eigen::Matrix<T, 3, 1> n = plane_.head<3>().cast<T>();
+  bool operator()(const T* d, const T* dt, T* residual) const {
+    using V = Eigen::Matrix<T, 3, 1>;
+    // Camera pose at t + dt, to first order, then the correction.
+    auto rotate = [&](const Eigen::Vector3d& omega, const T* angle_axis_d, const V& x) {
+      const V w = omega.cast<T>() * dt[0];
+      V y, z;
+      ceres::AngleAxisRotatePoint(angle_axis_d, x.data(), y.data());
+      ceres::AngleAxisRotatePoint(w.data(), y.data(), z.data());
+      return z;
+    };
+    const V f(T(o_.f_host.x()), T(o_.f_host.y()), T(1.0));
+    const V ray = o_.T_wg_c_host.linear().cast<T>() * rotate(o_.omega_host_c, d, f);
+    const V t_h = o_.T_wg_c_host.translation().cast<T>() + o_.v_host_wg.cast<T>() * dt[0];
+    const V n = o_.plane.head<3>().cast<T>();
     const T denom = n.dot(ray);
-    const T s = -(n.dot(t_h_.cast<T>()) + T(plane_[3])) / denom;
+    const T s = -(n.dot(t_h) + T(o_.plane[3])) / denom;
     if (!(s > T(0.1))) return false;  // cut behind the camera: step rejected
-    const Eigen::Matrix<T, 3, 1> p = t_h_.cast<T>() + s * ray;
-    const Eigen::Matrix<T, 3, 1> x_nominal = R_o_.transpose().cast<T>() * (p - t_o_.cast<T>());
+    const V p = t_h + s * ray;
+    const V t_o = o_.T_wg_c_obs.translation().cast<T>() + o_.v_obs_wg.cast<T>() * dt[0];
+    const V x_lio = o_.T_wg_c_obs.linear().transpose().cast<T>() * (p - t_o);
+    // The inverse of rotate(): undo the motion, then the correction.
+    const V w_inv = -o_.omega_obs_c.cast<T>() * dt[0];
     const T minus_d[3] = {-d[0], -d[1], -d[2]};
-    Eigen::Matrix<T, 3, 1> x;
-    ceres::AngleAxisRotatePoint(minus_d, x_nominal.data(), x.data());
+    V y, x;
+    ceres::AngleAxisRotatePoint(w_inv.data(), x_lio.data(), y.data());
+    ceres::AngleAxisRotatePoint(minus_d, y.data(), x.data());
     if (!(x.z() > T(1e-3))) return false;
-    residual[0] = (x.x() / x.z() - T(f_o_.x())) * T(scale_);
-    residual[1] = (x.y() / x.z() - T(f_o_.y())) * T(scale_);
+    residual[0] = (x.x() / x.z() - T(o_.f_obs.x())) * T(scale_);
+    residual[1] = (x.y() / x.z() - T(o_.f_obs.y())) * T(scale_);
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Matrix3d& R_h, const Eigen::Vector3d& t_h,
-                                     const Eigen::Vector2d& f_h, const Eigen::Vector4d& plane,
-                                     const Eigen::Matrix3d& R_o, const Eigen::Vector3d& t_o,
-                                     const Eigen::Vector2d& f_o, double scale) {
-    return new ceres::AutoDiffCostFunction<PlaneCutReprojectionError, 2, 3>(
-        new PlaneCutReprojectionError(R_h, t_h, f_h, plane, R_o, t_o, f_o, scale));
+  static ceres::CostFunction* Create(const PlaneTrackObservation& o, double scale) {
+    return new ceres::AutoDiffCostFunction<PlaneCutReprojectionError, 2, 3, 1>(
+        new PlaneCutReprojectionError(o, scale));
   }
 
  private:
-  Eigen::Matrix3d R_h_;
-  Eigen::Vector3d t_h_;
-  Eigen::Vector2d f_h_;
-  Eigen::Vector4d plane_;
-  Eigen::Matrix3d R_o_;
-  Eigen::Vector3d t_o_;
-  Eigen::Vector2d f_o_;
+  PlaneTrackObservation o_;
   double scale_;
 };
 

@@ -44,6 +44,9 @@ UgvFrontend::Result UgvFrontend::Process(int64_t id, int64_t t_camera_ns, const 
   kf->id = id;
   kf->t_ns = t_camera_ns;
   kf->T_wg_c = pose.T;
+  const SensorTwist twist = odometry.SensorTwistAt(t_camera_ns, camera_mount_);
+  kf->omega_c = twist.omega;
+  kf->v_wg = twist.v_wg;
   auto start = std::chrono::steady_clock::now();
   kf->features = features_->Extract(image);
   result.features_ms = MsSince(start);

@@ -100,14 +100,13 @@ TEST(PlaneCutReprojectionTest, VanishesAtTheTrueCorrectionOnly) {
   const Eigen::Vector3d d_true = aa.angle() * aa.axis();
   double worst_at_truth = 0, sum_at_zero = 0;
   for (const auto& [key, o] : obs) {
-    const PlaneCutReprojectionError f(o.T_wg_c_host.linear(), o.T_wg_c_host.translation(), o.f_host,
-                                      o.plane, o.T_wg_c_obs.linear(), o.T_wg_c_obs.translation(),
-                                      o.f_obs, o.focal_px);
+    const PlaneCutReprojectionError f(o, o.focal_px);
     double r[2];
-    ASSERT_TRUE(f(d_true.data(), r));
+    const double no_offset = 0;
+    ASSERT_TRUE(f(d_true.data(), &no_offset, r));
     worst_at_truth = std::max(worst_at_truth, std::hypot(r[0], r[1]));
     const double zero[3] = {0, 0, 0};
-    if (f(zero, r)) sum_at_zero += std::hypot(r[0], r[1]);
+    if (f(zero, &no_offset, r)) sum_at_zero += std::hypot(r[0], r[1]);
   }
   EXPECT_LT(worst_at_truth, 1e-6);
   // Uncorrected, the cuts land elsewhere: pixels of error on average.
@@ -134,6 +133,60 @@ TEST(CameraRotationCalibratorTest, RecoversAConstantMountingRotation) {
     EXPECT_LT(error, 0.1);
     EXPECT_LT(r.final_rms_px, r.initial_rms_px);
   }
+}
+
+TEST(CameraRotationCalibratorTest, RecoversATimeOffsetFromTheUgvsTurning) {
+  // The LIO pose of each image is taken 15 ms early: each keyframe's
+  // nominal pose is its true one moved back along the camera's motion
+  // (1.5 m/s ahead, turning at -15..15 deg/s in turn), on top of a 1 deg
+  // mounting rotation.
+  const Eigen::Matrix3d correction = Rotation(1.0, {0.3, 1, -0.2});
+  const double offset_s = -0.015;
+  LScene scene(correction);
+  std::vector<Eigen::Vector3d> omega_c, v_wg;
+  for (size_t i = 0; i < scene.truth.size(); ++i) {
+    // Yaw is about the camera's -y axis (y points down).
+    omega_c.push_back(Eigen::Vector3d(0, -1, 0) * (i % 3 == 0 ? 15 : i % 3 == 1 ? -15 : 4) * kDeg);
+    v_wg.push_back(1.5 * (scene.truth[i].linear() * Eigen::Vector3d::UnitZ()));
+    Pose& T = scene.nominal[i];  // truth * correction^-1, at the true time
+    const Eigen::Vector3d w = -omega_c.back() * offset_s;
+    T.linear() = T.linear() * Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+    T.translation() -= v_wg.back() * offset_s;
+  }
+  auto observe = [&] {
+    auto obs = scene.Observe(3000, 0.5, 0.03, 7);
+    for (auto& [key, o] : obs) {
+      o.omega_host_c = omega_c[std::get<0>(key)];
+      o.v_host_wg = v_wg[std::get<0>(key)];
+      o.omega_obs_c = omega_c[std::get<2>(key)];
+      o.v_obs_wg = v_wg[std::get<2>(key)];
+    }
+    return obs;
+  };
+  CameraRotationCalibrator::Options o;
+  o.max_observations = 3000;
+  o.estimate_time_offset = true;
+  CameraRotationCalibrator with_offset(o);
+  o.estimate_time_offset = false;
+  CameraRotationCalibrator rotation_only(o);
+  for (const auto& [key, obs] : observe()) {
+    with_offset.Add(key, obs);
+    rotation_only.Add(key, obs);
+  }
+  const CameraRotationCalibrator::SolveResult r = with_offset.Solve();
+  ASSERT_TRUE(r.updated) << r.reason;
+  ASSERT_TRUE(rotation_only.Solve().updated);
+  const double error = AngleDeg(with_offset.rotation(), correction);
+  const double error_rotation_only = AngleDeg(rotation_only.rotation(), correction);
+  std::printf(
+      "time offset %.2f ms (true %.1f), rotation error %.3f deg (%.3f deg without the "
+      "offset), rms %.2f -> %.2f px\n",
+      1e3 * with_offset.time_offset_s(), 1e3 * offset_s, error, error_rotation_only,
+      r.initial_rms_px, r.final_rms_px);
+  EXPECT_NEAR(with_offset.time_offset_s(), offset_s, 0.002);
+  EXPECT_LT(error, 0.05);
+  EXPECT_EQ(rotation_only.time_offset_s(), 0.0);
+  EXPECT_GT(error_rotation_only, error);
 }
 
 TEST(CameraRotationCalibratorTest, CountsEachObservationOnceAndRejectsBadOnes) {
