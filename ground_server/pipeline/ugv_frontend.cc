@@ -44,7 +44,7 @@ UgvFrontend::Result UgvFrontend::Process(int64_t id, int64_t t_camera_ns, const 
   kf->id = id;
   kf->t_ns = t_camera_ns;
   kf->T_wg_c = pose.T;
-  const SensorTwist twist = odometry.SensorTwistAt(t_camera_ns, camera_mount_);
+  const SensorTwist twist = odometry.SensorTwistAt(t_camera_ns, camera_mount_, kTwistHalfWindowS);
   kf->omega_c = twist.omega;
   kf->v_wg = twist.v_wg;
   auto start = std::chrono::steady_clock::now();
@@ -75,6 +75,16 @@ UgvFrontend::Result UgvFrontend::Process(int64_t id, int64_t t_camera_ns, const 
   result.depth_ms = MsSince(start);
   result.keyframe = std::move(kf);
   return result;
+}
+
+PoseLookupStatus UgvFrontend::ImageReady(int64_t t_camera_ns,
+                                         const OdometryBuffer& odometry) const {
+  const PoseLookupStatus at = odometry.SensorPoseAt(t_camera_ns, camera_mount_).status;
+  if (at != PoseLookupStatus::kOk) return at;
+  const int64_t later = t_camera_ns + static_cast<int64_t>(kTwistHalfWindowS * 1e9);
+  return odometry.SensorPoseAt(later, camera_mount_).status == PoseLookupStatus::kWait
+             ? PoseLookupStatus::kWait
+             : PoseLookupStatus::kOk;
 }
 
 PoseLookupStatus UgvFrontend::PoseScan(int64_t t_lidar_ns, std::vector<Eigen::Vector3f> points_l,

@@ -59,6 +59,13 @@ class UgvFrontend {
   Result Process(int64_t id, int64_t t_camera_ns, const cv::Mat& image,
                  const OdometryBuffer& odometry, const VoxelMap& map) const;
 
+  /// Whether the image at t_camera_ns can be processed: kWait until the
+  /// odometry reaches kTwistHalfWindowS past it (the camera's motion is a
+  /// central difference over +-kTwistHalfWindowS, for the time-offset
+  /// estimate), kRefuse when its pose never will be known.
+  PoseLookupStatus ImageReady(int64_t t_camera_ns, const OdometryBuffer& odometry) const;
+  static constexpr double kTwistHalfWindowS = 0.1;
+
   /// The scan at t_lidar_ns posed in the ground world, or the lookup status.
   PoseLookupStatus PoseScan(int64_t t_lidar_ns, std::vector<Eigen::Vector3f> points_l,
                             const OdometryBuffer& odometry, PosedScan* scan) const;

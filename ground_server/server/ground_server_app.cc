@@ -521,10 +521,8 @@ void GroundServerApp::Impl::DrainPending() {
       Count(&GroundServerStats::scans_dropped);
     }
   }
-  const SensorMount camera_mount{calibration.camera.T_body_camera,
-                                 calibration.camera.time_offset_s};
   while (!pending_images.empty()) {
-    const PoseLookupStatus st = odo.SensorPoseAt(pending_images.front().t_ns, camera_mount).status;
+    const PoseLookupStatus st = frontend->ImageReady(pending_images.front().t_ns, odo);
     if (st == PoseLookupStatus::kWait) break;
     aglcm::image_t image = std::move(pending_images.front());
     pending_images.pop_front();

@@ -337,10 +337,7 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
         builder.Process(scan);
       } else {
         const SensorFrame& frame = dataset.ground.images[e.index];
-        if (odometry.SensorPoseAt(frame.t_ns, {ugv_cam.T_body_camera, ugv_cam.time_offset_s})
-                .status == PoseLookupStatus::kWait) {
-          return;
-        }
+        if (ugv.ImageReady(frame.t_ns, odometry) == PoseLookupStatus::kWait) return;
         pending.pop_front();
         const UgvFrontend::Result r = ugv.Process(
             ugv_id++, frame.t_ns, LoadImage(frame, cv::IMREAD_UNCHANGED), odometry, map);
