@@ -27,7 +27,9 @@ TEST(UgvFrontendTest, AnImageWaitsForTheOdometryPastItForItsCamerasMotion) {
   EXPECT_EQ(frontend.ImageReady(1100 * kMs, odometry), PoseLookupStatus::kWait);
   // Before the odometry's start: never.
   EXPECT_EQ(frontend.ImageReady(900 * kMs, odometry), PoseLookupStatus::kRefuse);
-  // And once it is ready, the camera's motion is the central difference.
+  // And once it is ready, the camera's motion is known there (whether it is
+  // the central or the backward difference, this linear motion cannot tell:
+  // OdometryBufferTest.SensorTwistIsTheMountedSensorsMotion does).
   const SensorTwist twist =
       odometry.SensorTwistAt(1080 * kMs, {Pose::Identity(), 0.02}, UgvFrontend::kTwistHalfWindowS);
   ASSERT_TRUE(twist.ok);
