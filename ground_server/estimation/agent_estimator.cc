@@ -569,6 +569,10 @@ EstimateResult AgentEstimator::Estimate(
     r.newest_air_t_ns = std::max(r.newest_air_t_ns, a.t_ns);
     r.oldest_air_t_ns = std::min(r.oldest_air_t_ns, a.t_ns);
   }
+  for (size_t a = 0; a < air_frames.size(); ++a) {
+    if (keep_frame[a]) r.air_seqs.push_back(air_frames[a]->seq);
+  }
+  std::sort(r.air_seqs.begin(), r.air_seqs.end());
   r.gate = gate_.Offer(t_ns, r.T_wa_wg);
   if (r.gate.publish) {
     // The fix: this estimate fused with those accepted before it (a new fix

@@ -160,10 +160,11 @@ struct EstimateResult {
   Pose T_wa_wg_single = Pose::Identity();  ///< this estimate alone, before fusion
   bool has_covariance = false;
   int inliers = 0;
-  int pairs = 0;                ///< air-ground keyframe pairs that contributed
-  int candidates = 0;           ///< UAV keyframes considered
-  int64_t newest_air_t_ns = 0;  ///< air clock time of the newest UAV keyframe used
-  int64_t oldest_air_t_ns = 0;  ///< and of the oldest
+  int pairs = 0;                  ///< air-ground keyframe pairs that contributed
+  int candidates = 0;             ///< UAV keyframes considered
+  int64_t newest_air_t_ns = 0;    ///< air clock time of the newest UAV keyframe used
+  int64_t oldest_air_t_ns = 0;    ///< and of the oldest
+  std::vector<int64_t> air_seqs;  ///< the UAV keyframes used (seq, ascending)
   double rms_reprojection_px = 0;
   Pose T_wa_wg_initial = Pose::Identity();  ///< RANSAC result, before refinement
   /// The newest UGV keyframe's camera pose from LIO and as used after stage 1

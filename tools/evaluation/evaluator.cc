@@ -200,6 +200,7 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
       log.reason = r.success ? r.gate.reason : r.reason;
       log.T_wa_wg = r.T_wa_wg;
       log.inliers = r.inliers;
+      log.air_seqs = r.air_seqs;
       log.covariance = r.covariance;
       log.has_covariance = r.has_covariance;
       std::optional<Pose> observable;  // the drift-free truth, with ground truth
@@ -454,10 +455,12 @@ void WriteEstimatesCsv(const std::string& path, const std::vector<EstimateLog>& 
   out << "# one row per estimate; t_s from the start of the data; yaw and sd_yaw in deg; "
          "error_* against groundtruth.yaml, drift_free_* against the relation of the two "
          "odometry worlds at the estimate's time (drift_free_at_ugv_m: where it maps the UGV "
-         "camera), truth_drift_* between the two truths (empty without ground truth)\n";
+         "camera), truth_drift_* between the two truths (empty without ground truth); "
+         "air_keyframes: the seq of every UAV keyframe the estimate used\n";
   out << "t_s,success,published,x,y,z,yaw_deg,sd_x,sd_y,sd_z,sd_yaw_deg,inliers,"
          "error_t_m,error_yaw_deg,drift_free_dx,drift_free_dy,drift_free_dz,"
-         "drift_free_dyaw_deg,drift_free_at_ugv_m,truth_drift_m,truth_drift_yaw_deg,reason\n";
+         "drift_free_dyaw_deg,drift_free_at_ugv_m,truth_drift_m,truth_drift_yaw_deg,air_keyframes,"
+         "reason\n";
   out << std::setprecision(9);
   for (const EstimateLog& e : estimates) {
     out << 1e-9 * static_cast<double>(e.t_ns - t0_ns) << ',' << int(e.success) << ','
@@ -491,6 +494,8 @@ void WriteEstimatesCsv(const std::string& path, const std::vector<EstimateLog>& 
     } else {
       out << ",,";
     }
+    out << ',';
+    for (size_t i = 0; i < e.air_seqs.size(); ++i) out << (i ? " " : "") << e.air_seqs[i];
     std::string reason = e.reason;
     std::replace(reason.begin(), reason.end(), ',', ';');
     out << ',' << reason << '\n';

@@ -78,6 +78,7 @@ struct EstimateLog {
   Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
   bool has_covariance = false;
   int inliers = 0;
+  std::vector<int64_t> air_seqs;  ///< the UAV keyframes the estimate used
 };
 
 struct EvaluationResult {

@@ -96,6 +96,7 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
   std::getline(csv, line);
   EXPECT_EQ(line.rfind("t_s,success,published,x,y,z,yaw_deg,", 0), 0u) << line;
   size_t rows = 0;
+  EXPECT_NE(line.find(",air_keyframes,reason"), std::string::npos) << line;
   int published = 0, with_residual = 0;
   while (std::getline(csv, line)) {
     ++rows;
@@ -105,6 +106,10 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
     ASSERT_GE(cells.size(), 18u) << line;
     published += cells[2] == "1";
     with_residual += !cells[14].empty();
+    if (cells[1] == "1") {
+      ASSERT_GE(cells.size(), 22u) << line;
+      EXPECT_FALSE(cells[21].empty()) << "an estimate names its UAV keyframes: " << line;
+    }
   }
   EXPECT_EQ(rows, result.estimates.at("uav1").size());
   EXPECT_EQ(published, agent["fixes"].get<int>());
