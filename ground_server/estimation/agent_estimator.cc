@@ -569,11 +569,16 @@ EstimateResult AgentEstimator::Estimate(
     r.newest_air_t_ns = std::max(r.newest_air_t_ns, a.t_ns);
     r.oldest_air_t_ns = std::min(r.oldest_air_t_ns, a.t_ns);
   }
+  size_t air_keypoints = 0;
   for (size_t a = 0; a < air_frames.size(); ++a) {
-    if (keep_frame[a]) r.air_seqs.push_back(air_frames[a]->seq);
+    if (!keep_frame[a]) continue;
+    r.air_seqs.push_back(air_frames[a]->seq);
+    air_keypoints += air_frames[a]->features.keypoints.size();
   }
   std::sort(r.air_seqs.begin(), r.air_seqs.end());
-  r.gate = gate_.Offer(t_ns, r.T_wa_wg);
+  r.gate = gate_.Offer(t_ns, r.T_wa_wg,
+                       {r.air_seqs, r.inliers,
+                        static_cast<double>(air_keypoints) / std::max<size_t>(1, frames2.size())});
   if (r.gate.publish) {
     // The fix: this estimate fused with those accepted before it (a new fix
     // starts over), each weighted by its covariance.

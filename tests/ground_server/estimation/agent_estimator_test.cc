@@ -115,19 +115,25 @@ class AgentEstimatorTest : public ::testing::Test {
       }
       window_.push_back(kf);
     }
-    for (int i = 0; i < 3; ++i) {
-      auto kf = std::make_shared<AirKeyframe>();
-      kf->agent = "uav";
-      kf->seq = i;
-      kf->t_ns = 1000000000LL * i;
-      kf->camera_id = "cam";
-      const Eigen::Vector3d pos_wg(8 + i, -2 + i, 9);
-      kf->T_wa_c = LookAt(T_wa_wg_ * pos_wg, T_wa_wg_ * Eigen::Vector3d(11, 0, 0));
-      std::vector<int> ids;
-      kf->features = Observe(world_, *camera_, T_wa_wg_.inverse() * kf->T_wa_c, rng_, &ids, 0.5);
-      kf->global_descriptor = place;
-      source_.keyframes.push_back(kf);
-    }
+    for (int i = 0; i < 3; ++i) AddAirKeyframe(i);
+  }
+
+  // The UAV's keyframe seq at (8 + i, -2 + i, 9) in the UGV world (i: 0-2),
+  // sent at i s; again from the same place for a larger seq (hovering).
+  void AddAirKeyframe(int seq) {
+    const int i = seq % 3;
+    auto kf = std::make_shared<AirKeyframe>();
+    kf->agent = "uav";
+    kf->seq = seq;
+    kf->t_ns = 1000000000LL * seq;
+    kf->camera_id = "cam";
+    const Eigen::Vector3d pos_wg(8 + i, -2 + i, 9);
+    kf->T_wa_c = LookAt(T_wa_wg_ * pos_wg, T_wa_wg_ * Eigen::Vector3d(11, 0, 0));
+    std::vector<int> ids;
+    kf->features = Observe(world_, *camera_, T_wa_wg_.inverse() * kf->T_wa_c, rng_, &ids, 0.5);
+    kf->global_descriptor = std::vector<float>(512, 0.0f);
+    kf->global_descriptor[0] = 1.0f;
+    source_.keyframes.push_back(kf);
   }
 
   std::mt19937 rng_;
@@ -139,17 +145,31 @@ class AgentEstimatorTest : public ::testing::Test {
 };
 
 TEST_F(AgentEstimatorTest, RecoversTransformAndPublishesAfterConfirmation) {
-  AgentEstimator estimator("uav", EstimatorOptions{}, camera_);
+  EstimatorOptions options;
+  options.retrieval_k = 8;  // every UAV keyframe (all look alike to retrieval)
+  // Treat this test's (strong) matches as weak ones: a repeat never confirms.
+  options.gate.repeat_min_inlier_fraction = 1e6;
+  AgentEstimator estimator("uav", options, camera_);
   estimator.SetAirCamera("cam", camera_);
   const EstimateResult first = estimator.Estimate(0, window_, source_);
   ASSERT_TRUE(first.success) << first.reason;
   EXPECT_FALSE(first.gate.publish) << "a first estimate waits for confirmation";
+  EXPECT_EQ(first.air_seqs, (std::vector<int64_t>{0, 1, 2}));
+  // The same UAV keyframes again: the same match, not a confirmation.
+  const EstimateResult repeated = estimator.Estimate(250000000LL, window_, source_);
+  ASSERT_TRUE(repeated.success) << repeated.reason;
+  EXPECT_FALSE(repeated.gate.publish);
+  EXPECT_NE(repeated.gate.reason.find("1/3"), std::string::npos) << repeated.gate.reason;
+  // Each new UAV keyframe makes an estimate a confirmation.
+  AddAirKeyframe(3);
   const EstimateResult confirming = estimator.Estimate(500000000LL, window_, source_);
   ASSERT_TRUE(confirming.success) << confirming.reason;
   EXPECT_FALSE(confirming.gate.publish) << "a first fix needs three agreeing estimates";
+  EXPECT_NE(confirming.gate.reason.find("2/3"), std::string::npos) << confirming.gate.reason;
+  AddAirKeyframe(4);
   const EstimateResult second = estimator.Estimate(1000000000LL, window_, source_);
   ASSERT_TRUE(second.success) << second.reason;
-  EXPECT_TRUE(second.gate.publish);
+  EXPECT_TRUE(second.gate.publish) << second.gate.reason;
   EXPECT_EQ(second.gate.status, FixStatus::kTracking);
   const double t_err = (second.T_wa_wg.translation() - T_wa_wg_.translation()).norm();
   const double yaw_err =
@@ -159,7 +179,7 @@ TEST_F(AgentEstimatorTest, RecoversTransformAndPublishesAfterConfirmation) {
   EXPECT_GT(second.inliers, 100);
   EXPECT_GT(second.pairs, 3);
   EXPECT_TRUE(second.has_covariance);
-  EXPECT_EQ(second.newest_air_t_ns, 2000000000LL);
+  EXPECT_EQ(second.newest_air_t_ns, 4000000000LL);
   std::printf("error %.4f m %.4f deg, %d inliers, %d pairs, %.1f ms (stage1 %.1f, stage2 %.1f)\n",
               t_err, yaw_err, second.inliers, second.pairs, second.timing.total_ms,
               second.timing.stage1_ms, second.timing.stage2_ms);

@@ -105,5 +105,66 @@ TEST(FixGateTest, SaysWhichFixIsNewAndComparesWithTheRefinedFix) {
   EXPECT_FALSE(empty.fix().has_value());
 }
 
+// An estimate from the UAV keyframes `seqs` of 512 keypoints each, with
+// `inliers` inliers.
+FixEvidence From(std::vector<int64_t> seqs, int inliers = 60) {
+  return {std::move(seqs), inliers, 512.0};
+}
+
+TEST(FixGateTest, WeakEstimatesFromTheSameUavKeyframesDoNotConfirmEachOther) {
+  // An aliased place: every estimate repeats a 60-inlier match against UAV
+  // keyframes 3 and 4 (sometimes one of them), and agrees with the last.
+  FixGate gate({});
+  const Pose aliased = MakePose4Dof(39, 0, 0, 0.1);
+  const std::vector<std::vector<int64_t>> repeats = {{3, 4}, {3, 4}, {4}, {3}, {3, 4}, {3, 4}};
+  for (size_t i = 0; i < repeats.size(); ++i) {
+    const auto d = gate.Offer(static_cast<int64_t>(i) * kS, aliased, From(repeats[i]));
+    EXPECT_FALSE(d.publish) << "estimate " << i;
+    EXPECT_NE(d.reason.find("1/3"), std::string::npos) << d.reason;
+    if (i > 0) {
+      EXPECT_NE(d.reason.find("already counted"), std::string::npos) << d.reason;
+    }
+  }
+  EXPECT_FALSE(gate.fix().has_value());
+  // Estimates that each bring a UAV keyframe of their own confirm, also when
+  // they reuse earlier ones.
+  EXPECT_FALSE(gate.Offer(6 * kS, aliased, From({3, 4, 5})).publish);
+  EXPECT_TRUE(gate.Offer(7 * kS, aliased, From({4, 5, 6})).publish);
+
+  // So do strong repeats (repeat_min_inlier_fraction 0.15: 76.8 inliers of
+  // 512 keypoints), and estimates without evidence.
+  FixGate strong({});
+  strong.Offer(0, aliased, From({3, 4}, 300));
+  EXPECT_FALSE(strong.Offer(kS, aliased, From({3, 4}, 76)).publish);
+  EXPECT_FALSE(strong.Offer(2 * kS, aliased, From({3, 4}, 77)).publish);
+  EXPECT_TRUE(strong.Offer(3 * kS, aliased).publish);
+
+  // With repeat_min_inlier_fraction 0 every agreeing estimate confirms.
+  FixGate::Options options;
+  options.repeat_min_inlier_fraction = 0;
+  FixGate plain(options);
+  plain.Offer(0, aliased, From({3, 4}));
+  plain.Offer(kS, aliased, From({3, 4}));
+  EXPECT_TRUE(plain.Offer(2 * kS, aliased, From({3, 4})).publish);
+  options.repeat_min_inlier_fraction = -1;
+  EXPECT_THROW(FixGate{options}, std::exception);
+
+  // A jump needs new UAV keyframes too; agreeing with the current fix does not.
+  const Pose right = MakePose4Dof(0, 0, 0, 0);
+  FixGate tracking({});
+  tracking.Offer(0, right, From({1}));
+  tracking.Offer(kS, right, From({2}));
+  ASSERT_TRUE(tracking.Offer(2 * kS, right, From({3})).publish);
+  EXPECT_TRUE(tracking.Offer(3 * kS, right, From({3})).publish);
+  for (int i = 4; i < 8; ++i) EXPECT_FALSE(tracking.Offer(i * kS, aliased, From({7, 8})).publish);
+  EXPECT_TRUE(tracking.fix()->translation().isApprox(right.translation()));
+  // A disagreeing estimate starts a new chain, which forgets the old one's
+  // keyframes.
+  EXPECT_FALSE(tracking.Offer(8 * kS, MakePose4Dof(5, 0, 0, 0), From({7, 8})).publish);
+  EXPECT_FALSE(tracking.Offer(9 * kS, aliased, From({7, 8})).publish);
+  EXPECT_FALSE(tracking.Offer(10 * kS, aliased, From({7, 8, 9})).publish);
+  EXPECT_TRUE(tracking.Offer(11 * kS, aliased, From({10})).publish);
+}
+
 }  // namespace
 }  // namespace ag
