@@ -502,11 +502,15 @@ EstimateResult AgentEstimator::Estimate(
   // frames2's (-1: not kept).
   std::vector<AirFrame> frames2;
   std::vector<int> frame2_of(air_frames.size(), -1);
+  std::vector<int64_t> used_air_seqs;  // for the gate
+  size_t air_keypoints = 0;
   for (size_t a = 0; a < air_frames.size(); ++a) {
     if (!keep_frame[a]) continue;
     frame2_of[a] = static_cast<int>(frames2.size());
     frames2.push_back({air_frames[a]->t_ns, air_frames[a]->T_wa_c,
                        air_cameras_.at(air_frames[a]->camera_id).get()});
+    used_air_seqs.push_back(air_frames[a]->seq);
+    air_keypoints += air_frames[a]->features.keypoints.size();
   }
   std::vector<AirGroundObservation> observations;
   std::vector<RayPointCorrespondence> refined_corr = corr;
@@ -569,12 +573,7 @@ EstimateResult AgentEstimator::Estimate(
     r.newest_air_t_ns = std::max(r.newest_air_t_ns, a.t_ns);
     r.oldest_air_t_ns = std::min(r.oldest_air_t_ns, a.t_ns);
   }
-  size_t air_keypoints = 0;
-  for (size_t a = 0; a < air_frames.size(); ++a) {
-    if (!keep_frame[a]) continue;
-    r.air_seqs.push_back(air_frames[a]->seq);
-    air_keypoints += air_frames[a]->features.keypoints.size();
-  }
+  r.air_seqs = std::move(used_air_seqs);
   std::sort(r.air_seqs.begin(), r.air_seqs.end());
   r.gate = gate_.Offer(t_ns, r.T_wa_wg,
                        {r.air_seqs, r.inliers,

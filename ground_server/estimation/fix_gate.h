@@ -50,9 +50,10 @@ class FixGate {
     /// An agreeing estimate from only UAV keyframes the chain has used
     /// confirms only with this many inliers per keypoint of those keyframes
     /// (0: always). Without it, at 512 keypoints three estimates of 56-63
-    /// inliers (0.11 per keypoint) on the same aliased UAV keyframes
-    /// published a 39 m false first fix (README, "Accuracy").
+    /// inliers on the same aliased UAV keyframes (the third 56 of 512, 0.11
+    /// per keypoint) published a 39 m false first fix (README, "Accuracy").
     double repeat_min_inlier_fraction = 0.15;
+
     template <class V>
     void VisitFields(V& v) {
       v("confirmations", confirmations);
