@@ -197,6 +197,10 @@ class AgentEstimator {
   /// The UGV camera's correction against the LiDAR map that stage 1 applies
   /// (on the right of the LIO camera pose; identity until it has one).
   const Pose& camera_correction() const { return camera_correction_; }
+  /// The UGV camera's time offset against LIO that stage 1 applies (s, as
+  /// the dataset's time_offset_s: t_body = t_camera + offset, beyond the
+  /// nominal one); 0 until estimated or when not estimated.
+  double camera_time_offset_s() const { return camera_rotation_.time_offset_s(); }
   /// A UGV keyframe's camera pose with the calibration estimated so far
   /// (time offset, then rotation correction) applied.
   Pose CorrectedCameraPose(const UgvKeyframe& kf) const;

@@ -437,6 +437,10 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
       const Eigen::Matrix3d& R = s.estimator->camera_correction().linear();
       report.agents[s.name].ugv_camera_rotation_error_deg =
           std::make_pair(angle_deg(C), angle_deg(R.transpose() * C));
+      report.agents[s.name].ugv_camera_time_offset_ms =
+          std::make_pair(1e3 * (dataset.groundtruth->ground_true_camera->time_offset_s -
+                                dataset.ground.calibration.camera.time_offset_s),
+                         1e3 * s.estimator->camera_time_offset_s());
     }
   }
   result.agents = report.agents;

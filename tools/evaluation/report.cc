@@ -182,6 +182,10 @@ nlohmann::json MakeReport(const ReportInput& in) {
       a["ugv_camera_rotation_error_deg"] = {{"nominal", rec.ugv_camera_rotation_error_deg->first},
                                             {"stage1", rec.ugv_camera_rotation_error_deg->second}};
     }
+    if (rec.ugv_camera_time_offset_ms) {
+      a["ugv_camera_time_offset_ms"] = {{"true", rec.ugv_camera_time_offset_ms->first},
+                                        {"estimated", rec.ugv_camera_time_offset_ms->second}};
+    }
     if (!rec.fixes.empty()) {
       const Pose& T = rec.fixes.back().T_wa_wg;
       a["final_T_wa_wg"] = {{"x", T.translation().x()},
