@@ -60,6 +60,32 @@ struct CorrespondenceSource {
   int air_keypoint = 0;
 };
 
+// What an estimate offers the gate as evidence: the UAV keyframes its match
+// rests on, those with at least `min_inliers` of its inliers (none does: the
+// one with the most). A keyframe kept without them -- in the time stretch,
+// but its matches outliers -- brings nothing, so that a chain repeating one
+// aliased match cannot pass it off as new evidence.
+FixEvidence GateEvidence(const std::vector<std::shared_ptr<const AirKeyframe>>& air_frames,
+                         const std::vector<int>& frame_inliers, int min_inliers) {
+  FixEvidence e;
+  size_t keypoints = 0;
+  const auto add = [&](size_t a) {
+    e.air_seqs.push_back(air_frames[a]->seq);
+    e.inliers += frame_inliers[a];
+    keypoints += air_frames[a]->features.keypoints.size();
+  };
+  for (size_t a = 0; a < air_frames.size(); ++a) {
+    if (frame_inliers[a] >= min_inliers) add(a);
+  }
+  if (e.air_seqs.empty() && !air_frames.empty()) {
+    add(static_cast<size_t>(std::max_element(frame_inliers.begin(), frame_inliers.end()) -
+                            frame_inliers.begin()));
+  }
+  e.air_keypoints = static_cast<double>(keypoints) / std::max<size_t>(1, e.air_seqs.size());
+  std::sort(e.air_seqs.begin(), e.air_seqs.end());
+  return e;
+}
+
 }  // namespace
 
 std::vector<bool> StretchWithMostWeight(const std::vector<int64_t>& t_ns,
@@ -502,16 +528,17 @@ EstimateResult AgentEstimator::Estimate(
   // frames2's (-1: not kept).
   std::vector<AirFrame> frames2;
   std::vector<int> frame2_of(air_frames.size(), -1);
-  std::vector<int64_t> used_air_seqs;  // for the gate
-  size_t air_keypoints = 0;
+  std::vector<int64_t> used_air_seqs;
   for (size_t a = 0; a < air_frames.size(); ++a) {
     if (!keep_frame[a]) continue;
     frame2_of[a] = static_cast<int>(frames2.size());
     frames2.push_back({air_frames[a]->t_ns, air_frames[a]->T_wa_c,
                        air_cameras_.at(air_frames[a]->camera_id).get()});
     used_air_seqs.push_back(air_frames[a]->seq);
-    air_keypoints += air_frames[a]->features.keypoints.size();
   }
+  std::vector<int> kept_inliers(air_frames.size(), 0);
+  for (int i : inliers) ++kept_inliers[corr[i].air_frame];
+  const FixEvidence evidence = GateEvidence(air_frames, kept_inliers, options_.min_pair_inliers);
   std::vector<AirGroundObservation> observations;
   std::vector<RayPointCorrespondence> refined_corr = corr;
   for (int i : inliers) {
@@ -575,9 +602,7 @@ EstimateResult AgentEstimator::Estimate(
   }
   r.air_seqs = std::move(used_air_seqs);
   std::sort(r.air_seqs.begin(), r.air_seqs.end());
-  r.gate = gate_.Offer(t_ns, r.T_wa_wg,
-                       {r.air_seqs, r.inliers,
-                        static_cast<double>(air_keypoints) / std::max<size_t>(1, frames2.size())});
+  r.gate = gate_.Offer(t_ns, r.T_wa_wg, evidence);
   if (r.gate.publish) {
     // The fix: this estimate fused with those accepted before it (a new fix
     // starts over), each weighted by its covariance.

@@ -71,8 +71,10 @@ struct EstimatorOptions {
   double covisible_fraction = 0.2;  ///< of UGV points inside the UAV image to count as co-visible
   int max_pairs = 12;               ///< air-ground keyframe pairs matched per estimate
   int min_matches = 20;             ///< a pair with fewer descriptor matches is discarded
-  int min_pair_inliers = 12;        ///< a pair with fewer RANSAC inliers gives no consistency term
-  int min_inliers = 30;             ///< fewer inliers overall: no estimate
+  /// a pair with fewer RANSAC inliers gives no consistency term; a UAV keyframe with fewer is no
+  /// new evidence for the fix gate
+  int min_pair_inliers = 12;
+  int min_inliers = 30;  ///< fewer inliers overall: no estimate
   /// The UAV keyframes of one estimate span at most this much of the UAV's
   /// time (s; 0 = no limit): the stretch with the most RANSAC inliers is
   /// kept. VIO drifts, so keyframes taken far apart in time (a UGV that

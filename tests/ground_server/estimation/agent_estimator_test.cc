@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <opencv2/core.hpp>
 #include <random>
 
@@ -120,7 +121,9 @@ class AgentEstimatorTest : public ::testing::Test {
 
   // The UAV's keyframe seq at (8 + i, -2 + i, 9) in the UGV world (i: 0-2),
   // sent at i s; again from the same place for a larger seq (hovering).
-  void AddAirKeyframe(int seq) {
+  // Scrambled: the keypoints' pixels shuffled, so its descriptors match but
+  // no match fits the geometry.
+  void AddAirKeyframe(int seq, bool scrambled = false) {
     const int i = seq % 3;
     auto kf = std::make_shared<AirKeyframe>();
     kf->agent = "uav";
@@ -131,6 +134,7 @@ class AgentEstimatorTest : public ::testing::Test {
     kf->T_wa_c = LookAt(T_wa_wg_ * pos_wg, T_wa_wg_ * Eigen::Vector3d(11, 0, 0));
     std::vector<int> ids;
     kf->features = Observe(world_, *camera_, T_wa_wg_.inverse() * kf->T_wa_c, rng_, &ids, 0.5);
+    if (scrambled) std::shuffle(kf->features.keypoints.begin(), kf->features.keypoints.end(), rng_);
     kf->global_descriptor = std::vector<float>(512, 0.0f);
     kf->global_descriptor[0] = 1.0f;
     source_.keyframes.push_back(kf);
@@ -183,6 +187,29 @@ TEST_F(AgentEstimatorTest, RecoversTransformAndPublishesAfterConfirmation) {
   std::printf("error %.4f m %.4f deg, %d inliers, %d pairs, %.1f ms (stage1 %.1f, stage2 %.1f)\n",
               t_err, yaw_err, second.inliers, second.pairs, second.timing.total_ms,
               second.timing.stage1_ms, second.timing.stage2_ms);
+}
+
+TEST_F(AgentEstimatorTest, AKeyframeWithoutInliersIsNoNewEvidence) {
+  EstimatorOptions options;
+  options.retrieval_k = 8;
+  options.gate.repeat_min_inlier_fraction = 1e6;  // a repeat never confirms
+  AgentEstimator estimator("uav", options, camera_);
+  estimator.SetAirCamera("cam", camera_);
+  ASSERT_TRUE(estimator.Estimate(0, window_, source_).success);
+  // A new UAV keyframe whose matches are all outliers: stage 2 keeps it (it
+  // is in the time stretch), but the estimate still rests on keyframes 0-2
+  // only, and must not count as a confirmation.
+  AddAirKeyframe(3, /*scrambled=*/true);
+  const EstimateResult outliers = estimator.Estimate(250000000LL, window_, source_);
+  ASSERT_TRUE(outliers.success) << outliers.reason;
+  EXPECT_EQ(outliers.air_seqs, (std::vector<int64_t>{0, 1, 2, 3})) << "keyframe 3 was matched";
+  EXPECT_FALSE(outliers.gate.publish);
+  EXPECT_NE(outliers.gate.reason.find("1/3"), std::string::npos) << outliers.gate.reason;
+  // A new keyframe with inliers is new evidence.
+  AddAirKeyframe(4);
+  const EstimateResult confirming = estimator.Estimate(500000000LL, window_, source_);
+  ASSERT_TRUE(confirming.success) << confirming.reason;
+  EXPECT_NE(confirming.gate.reason.find("2/3"), std::string::npos) << confirming.gate.reason;
 }
 
 TEST_F(AgentEstimatorTest, AblationsRun) {
