@@ -17,9 +17,11 @@ const char* ToString(FixStatus status);
 
 /// What an estimate offered to FixGate was made from.
 struct FixEvidence {
-  std::vector<int64_t> air_seqs;  ///< the UAV keyframes used (empty: unknown)
-  int inliers = 0;
-  double air_keypoints = 0;  ///< keypoints per UAV keyframe used, mean
+  /// the UAV keyframes the estimate rests on (AgentEstimator: those holding
+  /// min_pair_inliers of its inliers; empty: unknown)
+  std::vector<int64_t> air_seqs;
+  int inliers = 0;           ///< the estimate's inliers on those keyframes
+  double air_keypoints = 0;  ///< keypoints per keyframe of air_seqs, mean
 };
 
 /// Decides which estimates become published fixes, so that one aliased
