@@ -12,7 +12,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 #include <exception>
 #include <limits>
 #include <random>
@@ -21,6 +20,7 @@
 #include <vector>
 
 #include "common/camera/camera.h"
+#include "common/core/cpu_time.h"
 #include "ground_server/depth/depth_association.h"
 #include "ground_server/voxel_map/voxel_grid.h"
 #include "ground_server/voxel_map/voxel_hash_table.h"
@@ -117,14 +117,6 @@ Pose ForwardCamera(const Eigen::Vector3d& position) {
   T.linear() = Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY()).toRotationMatrix() * base;
   T.translation() = position;
   return T;
-}
-
-// CPU time of the calling thread (ms): on a machine shared with other jobs
-// wall time mostly measures the scheduler.
-double ThreadCpuMs() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
 // Best of `repeats` runs, in thread CPU time, or wall time when `wall`

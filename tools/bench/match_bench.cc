@@ -12,24 +12,17 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
-#include <ctime>
 #include <exception>
 #include <opencv2/core.hpp>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "common/core/cpu_time.h"
 #include "ground_server/matching/descriptor_matcher.h"
 
 namespace ag {
 namespace {
-
-/// CPU time of this thread (ms): excludes time the thread was preempted.
-double ThreadCpuMs() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
-}
 
 cv::Mat RandomUnitRows(int rows, std::mt19937* rng) {
   std::normal_distribution<float> n(0.0f, 1.0f);

@@ -17,12 +17,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <exception>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "common/core/cpu_time.h"
 #include "ground_server/place_db/place_db.h"
 #include "ground_server/place_db/synthetic_places.h"
 
@@ -32,14 +32,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 double Ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
-
-/// CPU time of this thread (ms): unlike wall time it excludes the time the
-/// thread was preempted, which dominates on a busy machine.
-double ThreadCpuMs() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
-}
 
 struct Percentiles {
   double median = 0;
