@@ -10,9 +10,24 @@ VoxelMap::VoxelMap(const Options& options) : options_(options), grid_(options.gr
   options_.Check();
 }
 
+VoxelMap::FifoGate::Pass::Pass(FifoGate* gate) : gate_(gate) {
+  std::unique_lock<std::mutex> lock(gate_->mutex_);
+  const uint64_t ticket = gate_->next_ticket_++;
+  gate_->turn_.wait(lock, [&] { return gate_->serving_ == ticket; });
+}
+
+VoxelMap::FifoGate::Pass::~Pass() {
+  {
+    std::lock_guard<std::mutex> lock(gate_->mutex_);
+    ++gate_->serving_;
+  }
+  gate_->turn_.notify_all();
+}
+
 VoxelMap::Reader VoxelMap::Read() const {
-  // Pass the gate so a waiting writer is served before newly arriving readers.
-  std::lock_guard<std::mutex> gate(writer_gate_);
+  // The shared lock is taken while holding the pass, so a writer that
+  // arrived earlier is served first.
+  const FifoGate::Pass pass(&gate_);
   return Reader(&grid_, &mutex_);
 }
 
@@ -24,18 +39,18 @@ VoxelInsertStats VoxelMap::Insert(const std::vector<Eigen::Vector3f>& points_in_
   VoxelInsertStats stats;
   const size_t chunk = static_cast<size_t>(options_.insert_chunk_points);
   {
-    std::lock_guard<std::mutex> gate(writer_gate_);
+    const FifoGate::Pass pass(&gate_);
     std::unique_lock<std::shared_mutex> lock(mutex_);
     grid_.BeginScan(sensor_in_wg);
   }
   for (size_t begin = 0; begin < points_in_wg.size(); begin += chunk) {
     const size_t count = std::min(chunk, points_in_wg.size() - begin);
-    std::lock_guard<std::mutex> gate(writer_gate_);
+    const FifoGate::Pass pass(&gate_);
     std::unique_lock<std::shared_mutex> lock(mutex_);
     grid_.AddPoints(points_in_wg.data() + begin, count, &stats);
   }
   {
-    std::lock_guard<std::mutex> gate(writer_gate_);
+    const FifoGate::Pass pass(&gate_);
     std::unique_lock<std::shared_mutex> lock(mutex_);
     grid_.EndScan(&stats);
   }
@@ -58,7 +73,7 @@ std::vector<Eigen::Vector3f> VoxelMap::Points() const { return Read()->Points();
 
 void VoxelMap::Clear() {
   std::lock_guard<std::mutex> one_scan_at_a_time(insert_mutex_);
-  std::lock_guard<std::mutex> gate(writer_gate_);
+  const FifoGate::Pass pass(&gate_);
   std::unique_lock<std::shared_mutex> lock(mutex_);
   grid_.Clear();
 }

@@ -1,7 +1,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <condition_variable>
 #include <cstddef>
+#include <cstdint>
 #include <mutex>
 #include <shared_mutex>
 #include <vector>
@@ -24,10 +26,13 @@ namespace ag {
 /// would need a lock per probe; tools/bench/map_bench measures the shared
 /// lock (query cost with and without a concurrent inserter).
 ///
-/// Writers are not starved by a continuous stream of readers: a writer first
-/// takes `writer_gate_`, which new Readers also pass through, so readers
-/// arriving after a waiting writer queue behind it (glibc's rwlock otherwise
-/// prefers readers).
+/// Neither side starves the other: before touching the shared_mutex every
+/// Reader and every chunk of an Insert passes one gate in arrival order (a
+/// ticket lock). Readers arriving after a waiting writer queue behind it
+/// (glibc's rwlock otherwise prefers readers), and a writer going on to its
+/// next chunk queues behind the readers that arrived during the last one (a
+/// plain mutex as the gate let it lock again at once, so a reader could wait
+/// for the whole backlog of scans).
 class VoxelMap {
  public:
   struct Options {
@@ -84,9 +89,31 @@ class VoxelMap {
   void Clear();
 
  private:
+  /// Passage in order of arrival; a thread keeps its Pass until it holds
+  /// mutex_ (readers) or until its chunk is done (writers).
+  class FifoGate {
+   public:
+    class Pass {
+     public:
+      explicit Pass(FifoGate* gate);
+      ~Pass();
+      Pass(const Pass&) = delete;
+      Pass& operator=(const Pass&) = delete;
+
+     private:
+      FifoGate* gate_;
+    };
+
+   private:
+    std::mutex mutex_;
+    std::condition_variable turn_;
+    uint64_t next_ticket_ = 0;
+    uint64_t serving_ = 0;
+  };
+
   Options options_;
-  std::mutex insert_mutex_;  ///< held for a whole Insert (lock order: this, gate, mutex_)
-  mutable std::mutex writer_gate_;
+  std::mutex insert_mutex_;  ///< held for a whole Insert (lock order: this, gate_, mutex_)
+  mutable FifoGate gate_;
   mutable std::shared_mutex mutex_;
   VoxelGrid grid_;
 };
