@@ -329,7 +329,7 @@ int Run(int num_scans, int num_keypoints, int repeats) {
     });
     const double busy_ms = BestMs(repeats, keyframe, /*wall=*/true);
     // Fewer single queries while inserting: each waits for the chunk in
-    // progress (~0.1-0.4 ms).
+    // progress (up to ~2 ms).
     constexpr size_t kBusyQueries = 2000, kIdleQueries = 50000;
     size_t found = 0;
     const auto single_start = Clock::now();
