@@ -71,6 +71,100 @@ struct InverseDepthReprojectionError {
   double inv_sigma_;
 };
 
+/// InverseDepthReprojectionError with analytic Jacobians (stage 1 spends
+/// most of its solve differentiating this residual with 15-wide jets). The
+/// rotations are differentiated as Eigen applies a quaternion (x, y, z, w)
+/// = (u, w) to a vector, v + 2w (u x v) + 2 u x (u x v), so the Jacobians
+/// equal autodiff's in the quaternions' ambient coordinates; only the
+/// camera's projection is left to a 3-wide jet. Same residual, same
+/// parameters, same rejection of points behind the camera.
+class InverseDepthReprojectionCost final : public ceres::SizedCostFunction<2, 4, 3, 4, 3, 1> {
+ public:
+  InverseDepthReprojectionCost(const Camera* camera, const Eigen::Vector2d& f_h,
+                               const Eigen::Vector2d& u_j, double sigma_px)
+      : camera_(camera), f_h_(f_h), u_j_(u_j), inv_sigma_(1.0 / sigma_px) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    using Mat3 = Eigen::Matrix3d;
+    using Vec3 = Eigen::Vector3d;
+    const Eigen::Map<const Vec3> u_h(parameters[0]), t_h(parameters[1]);
+    const Eigen::Map<const Vec3> u_j(parameters[2]), t_j(parameters[3]);
+    const double w_h = parameters[0][3], w_j = parameters[2][3], rho = parameters[4][0];
+    const Vec3 f(f_h_.x(), f_h_.y(), 1.0);
+    const Vec3 v = f / rho;
+    // Rotation by (u, w) as a matrix acting on vectors (Eigen's formula is
+    // linear in the vector); the conjugate is (-u, w).
+    const auto rotation = [](const Vec3& u, double w) {
+      const Mat3 U = Skew(u);
+      return Mat3(Mat3::Identity() + 2 * w * U + 2 * U * U);
+    };
+    const Mat3 R_h = rotation(u_h, w_h);
+    const Mat3 Rt_j = rotation(-u_j, w_j);
+    const Vec3 d = R_h * v + t_h - t_j;
+    const Vec3 p = Rt_j * d;
+    if (p.z() <= 1e-3) return false;  // behind the camera: step rejected
+    using Jet3 = ceres::Jet<double, 3>;
+    const Jet3 p_jet[3] = {Jet3(p.x(), 0), Jet3(p.y(), 1), Jet3(p.z(), 2)};
+    Jet3 uv[2];
+    camera_->ProjectT(p_jet, uv);
+    residuals[0] = (uv[0].a - u_j_.x()) * inv_sigma_;
+    residuals[1] = (uv[1].a - u_j_.y()) * inv_sigma_;
+    if (jacobians == nullptr) return true;
+    Eigen::Matrix<double, 2, 3> J_p;  // whitened residual by p
+    J_p.row(0) = uv[0].v.transpose() * inv_sigma_;
+    J_p.row(1) = uv[1].v.transpose() * inv_sigma_;
+    // d/d(u, w) of v + 2w (u x v) + 2 u x (u x v):
+    //   by u: -2w [v]x + 2 ((u.v) I + u v^T - 2 v u^T),  by w: 2 u x v.
+    const auto by_quaternion = [](const Vec3& u, double w, const Vec3& x) {
+      Eigen::Matrix<double, 3, 4> J;
+      J.leftCols<3>() = -2 * w * Skew(x) + 2 * (u.dot(x) * Mat3::Identity() + u * x.transpose() -
+                                                2 * x * u.transpose());
+      J.col(3) = 2 * u.cross(x);
+      return J;
+    };
+    const Eigen::Matrix<double, 2, 3> J_d = J_p * Rt_j;  // by d = p_wg - t_j
+    using RowMajor2x4 = Eigen::Matrix<double, 2, 4, Eigen::RowMajor>;
+    using RowMajor2x3 = Eigen::Matrix<double, 2, 3, Eigen::RowMajor>;
+    if (jacobians[0] != nullptr) {
+      Eigen::Map<RowMajor2x4> J(jacobians[0]);
+      J = J_d * by_quaternion(u_h, w_h, v);
+    }
+    if (jacobians[1] != nullptr) {
+      Eigen::Map<RowMajor2x3> J(jacobians[1]);
+      J = J_d;
+    }
+    if (jacobians[2] != nullptr) {
+      // The conjugate's u is -u_j: the chain rule flips the u columns.
+      Eigen::Matrix<double, 3, 4> J_q = by_quaternion(-u_j, w_j, d);
+      J_q.leftCols<3>() *= -1;
+      Eigen::Map<RowMajor2x4> J(jacobians[2]);
+      J = J_p * J_q;
+    }
+    if (jacobians[3] != nullptr) {
+      Eigen::Map<RowMajor2x3> J(jacobians[3]);
+      J = -J_d;
+    }
+    if (jacobians[4] != nullptr) {
+      Eigen::Map<Eigen::Vector2d> J(jacobians[4]);
+      J = J_d * (R_h * (-f / (rho * rho)));
+    }
+    return true;
+  }
+
+ private:
+  static Eigen::Matrix3d Skew(const Eigen::Vector3d& x) {
+    Eigen::Matrix3d S;
+    S << 0, -x.z(), x.y(), x.z(), 0, -x.x(), -x.y(), x.x(), 0;
+    return S;
+  }
+
+  const Camera* camera_;
+  Eigen::Vector2d f_h_;
+  Eigen::Vector2d u_j_;
+  double inv_sigma_;
+};
+
 /// Stage 1: LiDAR depth of a map point as a prior on its inverse depth.
 /// r = (1/rho - d) / sigma_d, the depth along the host camera's z axis.
 struct DepthPriorError {

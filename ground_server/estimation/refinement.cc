@@ -115,10 +115,10 @@ Stage1Result RunStage1(const std::vector<UgvWindowFrame>& frames,
     for (const auto& [j, uv] : track.observations) {
       if (j == track.host_frame || j < 0 || j >= n_frames) continue;
       PoseBlock& target = poses[j];
-      problem.AddResidualBlock(InverseDepthReprojectionError::Create(frames[j].camera, track.f_host,
-                                                                     uv, options.sigma_px),
-                               MakeLoss(options.loss), h.q.data(), h.t.data(), target.q.data(),
-                               target.t.data(), &rho[k]);
+      problem.AddResidualBlock(
+          new InverseDepthReprojectionCost(frames[j].camera, track.f_host, uv, options.sigma_px),
+          MakeLoss(options.loss), h.q.data(), h.t.data(), target.q.data(), target.t.data(),
+          &rho[k]);
       ++observations;
     }
     if (anchored && track.has_plane()) {

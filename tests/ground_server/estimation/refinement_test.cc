@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <random>
 
 #include "ground_server/estimation/cost_functions.h"
@@ -84,6 +85,80 @@ TEST(CostFunctionTest, ReprojectionResidualsVanishAtTheTruth) {
   ASSERT_TRUE(g(qh_, th.data(), qj_, tj.data(), &rho, r));
   EXPECT_NEAR(r[0], 0, 1e-9);
   EXPECT_NEAR(r[1], 0, 1e-9);
+}
+
+// The analytic inverse-depth reprojection against the autodiff functor it
+// replaces in stage 1: residuals and all five Jacobians, for both camera
+// models, at random poses (quaternions slightly off unit length, as between
+// Ceres' manifold steps) and points at 2-40 m.
+TEST(CostFunctionTest, AnalyticInverseDepthJacobiansMatchAutodiff) {
+  CameraParams fisheye = test::Pinhole640x480({0.01, -0.002, 0.0005, -0.0001});
+  fisheye.model = "equidistant";
+  const Camera cameras[2] = {Camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005, 0.002})),
+                             Camera(fisheye)};
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  int compared = 0;
+  for (const Camera& camera : cameras) {
+    for (int trial = 0; trial < 50; ++trial) {
+      const Pose T_h = Perturb(
+          LookAt(Eigen::Vector3d(u(rng), u(rng), 0.5), Eigen::Vector3d(10, 3 * u(rng), 0.5)), rng,
+          0.1, 0.05);
+      const Pose T_j = Perturb(T_h, rng, 0.5, 0.1);
+      const double depth = 2 + 19 * (u(rng) + 1);
+      const Eigen::Vector2d f_h(0.5 * u(rng), 0.4 * u(rng));
+      const Eigen::Vector2d uv(320 + 200 * u(rng), 240 + 150 * u(rng));
+      const double sigma = 1.5;
+      const Eigen::Quaterniond qh(T_h.linear()), qj(T_j.linear());
+      const Eigen::Vector4d q_h = (1 + 0.01 * u(rng)) * qh.coeffs();
+      const Eigen::Vector4d q_j = (1 + 0.01 * u(rng)) * qj.coeffs();
+      const Eigen::Vector3d t_h = T_h.translation(), t_j = T_j.translation();
+      const double rho = 1 / depth;
+      const double* params[5] = {q_h.data(), t_h.data(), q_j.data(), t_j.data(), &rho};
+
+      std::unique_ptr<ceres::CostFunction> autodiff(
+          InverseDepthReprojectionError::Create(&camera, f_h, uv, sigma));
+      const InverseDepthReprojectionCost analytic(&camera, f_h, uv, sigma);
+      const int sizes[5] = {4, 3, 4, 3, 1};
+      double r_auto[2], r_analytic[2];
+      std::vector<std::vector<double>> J_auto(5), J_analytic(5);
+      double* ja[5];
+      double* jb[5];
+      for (int b = 0; b < 5; ++b) {
+        J_auto[b].assign(2 * sizes[b], 0);
+        J_analytic[b].assign(2 * sizes[b], -1);
+        ja[b] = J_auto[b].data();
+        jb[b] = J_analytic[b].data();
+      }
+      const bool ok_auto = autodiff->Evaluate(params, r_auto, ja);
+      ASSERT_EQ(analytic.Evaluate(params, r_analytic, jb), ok_auto) << "trial " << trial;
+      if (!ok_auto) continue;
+      ++compared;
+      for (int k = 0; k < 2; ++k) EXPECT_NEAR(r_analytic[k], r_auto[k], 1e-9);
+      for (int b = 0; b < 5; ++b) {
+        for (size_t k = 0; k < J_auto[b].size(); ++k) {
+          EXPECT_NEAR(J_analytic[b][k], J_auto[b][k], 1e-9 * (1 + std::abs(J_auto[b][k])))
+              << "block " << b << " entry " << k << " trial " << trial;
+        }
+      }
+      // Residuals alone (no Jacobians requested) are the same too.
+      double r_only[2];
+      ASSERT_TRUE(analytic.Evaluate(params, r_only, nullptr));
+      EXPECT_EQ(r_only[0], r_analytic[0]);
+    }
+  }
+  EXPECT_GE(compared, 90) << "most random points must be in front of the camera";
+
+  // Behind the camera both reject the step.
+  const Camera& camera = cameras[0];
+  const double q[4] = {0, 0, 0, 1}, t[3] = {0, 0, 0}, t_far[3] = {0, 0, 10}, rho = 0.5;
+  const double* params[5] = {q, t, q, t_far, &rho};
+  double r[2];
+  std::unique_ptr<ceres::CostFunction> autodiff(
+      InverseDepthReprojectionError::Create(&camera, Eigen::Vector2d::Zero(), {320, 240}, 1));
+  EXPECT_FALSE(autodiff->Evaluate(params, r, nullptr));
+  EXPECT_FALSE(InverseDepthReprojectionCost(&camera, Eigen::Vector2d::Zero(), {320, 240}, 1)
+                   .Evaluate(params, r, nullptr));
 }
 
 TEST(CostFunctionTest, RelativePoseResidualIsZeroForTheMeasuredMotion) {
