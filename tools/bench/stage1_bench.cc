@@ -23,6 +23,7 @@
 
 #include "common/core/cpu_time.h"
 #include "ground_server/estimation/cost_functions.h"
+#include "tests/support/synthetic_views.h"  // the test camera
 
 namespace ag {
 namespace {
@@ -132,14 +133,7 @@ double EvaluateUs(const Scene& s, Make make_cost) {
 }
 
 void Run(int tracks, int frames, int repeats) {
-  CameraParams params;
-  params.width = 1242;
-  params.height = 375;
-  params.fx = params.fy = 720;
-  params.cx = 621;
-  params.cy = 187;
-  params.distortion = {-0.05, 0.01, 0.001, -0.0005};
-  const Camera camera(params);
+  const Camera camera(test::Pinhole640x480({-0.05, 0.01, 0.001, -0.0005}));
   std::mt19937 rng(3);
   const Scene scene = MakeScene(camera, tracks, frames, &rng);
   const auto autodiff = [&](const Eigen::Vector2d& f, const Eigen::Vector2d& uv) {
