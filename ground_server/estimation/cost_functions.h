@@ -34,7 +34,10 @@ inline ceres::LossFunction* MakeLoss(const RobustLossOptions& o) {
 ///   p_wg = R_h * f_h / rho + t_h,   p_cj = R_j^T (p_wg - t_j),
 ///   r = (K_j(p_cj) - u_j) / sigma_px.
 /// Parameters: q_h, t_h, q_j, t_j, rho. Inverse depth keeps far points well
-/// conditioned (paper: "for numerical stability").
+/// conditioned (paper: "for numerical stability"). Stage 1 uses
+/// InverseDepthReprojectionCost below (the same residual, analytic
+/// Jacobians); this autodiff form is the reference the tests and
+/// stage1_bench hold it to.
 struct InverseDepthReprojectionError {
   InverseDepthReprojectionError(const Camera* camera, const Eigen::Vector2d& f_h,
                                 const Eigen::Vector2d& u_j, double sigma_px)
