@@ -236,9 +236,9 @@ TEST(GroundServerDaemon, ThreeProcessesTrackTheSmallScenario) {
   fs::create_directories(tmp / "cap");
   // Half speed: live, which UGV windows the ground server pairs with which
   // UAV keyframes depends on how well it keeps up. At real time, on a day
-  // this 2-core VM ran ~1.7x slower than usual, fixes came 1.2-2.4 s after
-  // their keyframes from fewer calibrated windows and the yaw median was
-  // 0.73 deg; the bounds below hold for a machine that keeps up.
+  // this 2-core VM ran ~1.7x slower than usual, the fixes' yaw errors were
+  // 0.51-1.36 deg (median 0.73); at half speed, on the same day, 0.17-0.29
+  // deg. The bounds below are for a machine that keeps up.
   const std::string script = Paths(dataset) + StartLive("uav1", "air.log") + R"SH(
 t0=$(now)
 $PLAY --dataset $D --speed 0.5 --lcm-url "$URL" > player.out 2> player.log
