@@ -181,12 +181,11 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   // The UGV camera's true correction against the LiDAR map: a LiDAR mounting
   // error moves LIO's reported body by T_off (LidarMountOffset), and the
   // camera pose from it is off by C = T_b_c_nominal^-1 T_off^-1 T_b_c_true.
-  std::optional<Eigen::Matrix3d> true_correction;
+  std::optional<Pose> true_correction;
   if (dataset.groundtruth && dataset.groundtruth->ground_true_camera) {
-    true_correction = (dataset.ground.calibration.camera.T_body_camera.inverse() *
-                       LidarMountOffset(dataset).inverse() *
-                       dataset.groundtruth->ground_true_camera->T_body_camera)
-                          .linear();
+    true_correction = dataset.ground.calibration.camera.T_body_camera.inverse() *
+                      LidarMountOffset(dataset).inverse() *
+                      dataset.groundtruth->ground_true_camera->T_body_camera;
   }
 
   auto run_estimates = [&](int64_t t_ns) {
@@ -285,7 +284,7 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
           {
             // The correction's error against the map.
             const Eigen::AngleAxisd a(s.estimator->camera_correction().linear().transpose() *
-                                      *true_correction);
+                                      true_correction->linear());
             const Eigen::Vector3d v = a.axis() * a.angle() * 180 / M_PI;
             spdlog::debug(
                 "  UGV camera correction vs map: {:.3f} deg (camera xyz {:+.2f} {:+.2f} {:+.2f})",
@@ -429,14 +428,16 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   drain_pending();
 
   if (true_correction) {
-    const Eigen::Matrix3d& C = *true_correction;
+    const Pose& C = *true_correction;
     const auto angle_deg = [](const Eigen::Matrix3d& R) {
       return Eigen::AngleAxisd(R).angle() * 180 / M_PI;
     };
     for (const auto& s : air) {
-      const Eigen::Matrix3d& R = s.estimator->camera_correction().linear();
+      const Pose& E = s.estimator->camera_correction();
       report.agents[s.name].ugv_camera_rotation_error_deg =
-          std::make_pair(angle_deg(C), angle_deg(R.transpose() * C));
+          std::make_pair(angle_deg(C.linear()), angle_deg(E.linear().transpose() * C.linear()));
+      report.agents[s.name].ugv_camera_translation_error_m =
+          std::make_pair(C.translation().norm(), (E.inverse() * C).translation().norm());
       report.agents[s.name].ugv_camera_time_offset_ms =
           std::make_pair(1e3 * (dataset.groundtruth->ground_true_camera->time_offset_s -
                                 dataset.ground.calibration.camera.time_offset_s),

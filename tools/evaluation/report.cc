@@ -182,6 +182,11 @@ nlohmann::json MakeReport(const ReportInput& in) {
       a["ugv_camera_rotation_error_deg"] = {{"nominal", rec.ugv_camera_rotation_error_deg->first},
                                             {"stage1", rec.ugv_camera_rotation_error_deg->second}};
     }
+    if (rec.ugv_camera_translation_error_m) {
+      a["ugv_camera_translation_error_m"] = {
+          {"nominal", rec.ugv_camera_translation_error_m->first},
+          {"stage1", rec.ugv_camera_translation_error_m->second}};
+    }
     if (rec.ugv_camera_time_offset_ms) {
       a["ugv_camera_time_offset_ms"] = {{"true", rec.ugv_camera_time_offset_ms->first},
                                         {"estimated", rec.ugv_camera_time_offset_ms->second}};

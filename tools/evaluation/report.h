@@ -65,6 +65,9 @@ struct AgentRecord {
   /// nominal calibration and after this agent's stage-1 correction, at the
   /// end of the run; when the dataset has the true calibrations.
   std::optional<std::pair<double, double>> ugv_camera_rotation_error_deg;
+  /// The same for the camera's position (m); the correction's translation
+  /// is zero unless the calibrator estimates it.
+  std::optional<std::pair<double, double>> ugv_camera_translation_error_m;
   /// The UGV camera's time offset against LIO beyond the nominal
   /// calibration's (ms): the dataset's true one and this agent's stage-1
   /// estimate at the end of the run; when the dataset has the true
