@@ -17,6 +17,8 @@ double MsSince(std::chrono::steady_clock::time_point start) {
 void UgvFrontend::Options::Check() const {
   CheckOption(min_depth_fraction >= 0 && min_depth_fraction <= 1, "min_depth_fraction",
               "must be in [0, 1]");
+  CheckOption(twist_half_window_s > 0 && twist_half_window_s <= 1, "twist_half_window_s",
+              "must be in (0, 1] s");
 }
 
 UgvFrontend::UgvFrontend(const AgentCalibration& calibration, const FeatureExtractor* features,
@@ -44,7 +46,8 @@ UgvFrontend::Result UgvFrontend::Process(int64_t id, int64_t t_camera_ns, const 
   kf->id = id;
   kf->t_ns = t_camera_ns;
   kf->T_wg_c = pose.T;
-  const SensorTwist twist = odometry.SensorTwistAt(t_camera_ns, camera_mount_, kTwistHalfWindowS);
+  const SensorTwist twist =
+      odometry.SensorTwistAt(t_camera_ns, camera_mount_, options_.twist_half_window_s);
   kf->omega_c = twist.omega;
   kf->v_wg = twist.v_wg;
   auto start = std::chrono::steady_clock::now();
@@ -81,7 +84,7 @@ PoseLookupStatus UgvFrontend::ImageReady(int64_t t_camera_ns,
                                          const OdometryBuffer& odometry) const {
   const PoseLookupStatus at = odometry.SensorPoseAt(t_camera_ns, camera_mount_).status;
   if (at != PoseLookupStatus::kOk) return at;
-  const int64_t later = t_camera_ns + static_cast<int64_t>(kTwistHalfWindowS * 1e9);
+  const int64_t later = t_camera_ns + static_cast<int64_t>(options_.twist_half_window_s * 1e9);
   return odometry.SensorPoseAt(later, camera_mount_).status == PoseLookupStatus::kWait
              ? PoseLookupStatus::kWait
              : PoseLookupStatus::kOk;
