@@ -33,7 +33,7 @@ class UgvFrontend {
     /// The camera's motion (for the time-offset estimate) is a central
     /// difference of LIO poses over +-this (s); images wait this long for
     /// the odometry to pass them. 0.02 s follows the vehicle's vibration and
-    /// gives a 4-7x more exact offset, but on the longer-range preset worse
+    /// gives a 4-10x more exact offset, but on the longer-range preset worse
     /// fixes (README, "Accuracy"), so the default stays at 0.1 s.
     double twist_half_window_s = 0.1;
 

@@ -65,8 +65,10 @@ struct AgentRecord {
   /// nominal calibration and after this agent's stage-1 correction, at the
   /// end of the run; when the dataset has the true calibrations.
   std::optional<std::pair<double, double>> ugv_camera_rotation_error_deg;
-  /// The same for the camera's position (m); the correction's translation
-  /// is zero unless the calibrator estimates it.
+  /// The same for the camera's position (m). The calibrator
+  /// (estimator.camera_rotation) corrects only the rotation, so by default
+  /// both are equal; stage 1's fused window correction, used when the
+  /// calibrator is off, moves the position too.
   std::optional<std::pair<double, double>> ugv_camera_translation_error_m;
   /// The UGV camera's time offset against LIO beyond the nominal
   /// calibration's (ms): the dataset's true one and this agent's stage-1
