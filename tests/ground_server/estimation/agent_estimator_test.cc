@@ -261,6 +261,37 @@ TEST(StretchWithMostWeight, KeepsTheStretchWithTheMostInliers) {
             (std::vector<bool>{false, false, true, true}));
 }
 
+TEST(PivotedBiasCovariance, LeavesThePivotAtTheTranslationSigmaAndGrowsWithDistanceFromIt) {
+  const double st = 0.1, syaw = 0.3 * M_PI / 180;
+  Pose T = Pose::Identity();
+  T.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(5, -3, 1);
+  // At the ground world's origin the floor is the plain diagonal.
+  const Eigen::Matrix4d C0 = PivotedBiasCovariance(T, Eigen::Vector3d::Zero(), st, syaw);
+  EXPECT_TRUE(C0.isApprox(
+      Eigen::Vector4d(st * st, st * st, st * st, syaw * syaw).asDiagonal().toDenseMatrix()));
+  // With the UGV 80 m away: where T maps a ground point p (R p + t) moves
+  // with (t, yaw) by [I, z x R p]; propagated, the pivot itself is as
+  // uncertain as sigma_t, while the origin (t itself) is off by 80 m x yaw.
+  const Eigen::Vector3d pivot(60, 50, 2);
+  const Eigen::Matrix4d C = PivotedBiasCovariance(T, pivot, st, syaw);
+  auto mapped = [&](const Eigen::Vector3d& p) {
+    Eigen::Matrix<double, 3, 4> J;
+    J << Eigen::Matrix3d::Identity(), Eigen::Vector3d::UnitZ().cross(T.linear() * p);
+    return Eigen::Matrix3d(J * C * J.transpose());
+  };
+  EXPECT_TRUE(mapped(pivot).isApprox(st * st * Eigen::Matrix3d::Identity(), 1e-9));
+  const double lever = pivot.head<2>().norm();
+  EXPECT_NEAR((C.topLeftCorner<2, 2>().trace()), 2 * st * st + std::pow(lever * syaw, 2), 1e-9);
+  EXPECT_NEAR(C(2, 2), st * st, 1e-12);
+  EXPECT_NEAR(C(3, 3), syaw * syaw, 1e-12);
+  // What counts is the distance from the pivot: a point twice as far from
+  // the origin, as far beyond the pivot, is off by the same lever.
+  const Eigen::Vector3d across = 2 * pivot - Eigen::Vector3d(0, 0, 2 * pivot.z());
+  EXPECT_NEAR((mapped(across).topLeftCorner<2, 2>().trace()),
+              2 * st * st + std::pow(lever * syaw, 2), 1e-9);
+}
+
 TEST(StretchWithMostWeight, NoLimitKeepsAllAndMismatchedSizesAreRejected) {
   EXPECT_EQ(StretchWithMostWeight(Seconds({0, 100}), {1, 1}, 0.0), (std::vector<bool>{true, true}));
   EXPECT_TRUE(StretchWithMostWeight({}, {}, 10.0).empty());
