@@ -634,10 +634,9 @@ EstimateResult AgentEstimator::Estimate(
   // And a floor for what neither shows: a bias common to consecutive
   // estimates (the UGV camera's residual extrinsic error seen through the
   // same part of the map), which fusing them does not average away. It
-  // turns the relation about the UGV: on no_initial_covisibility seed 2 the
-  // fixes 50-80 m from the ground world's origin were 0.3-0.5 deg off in yaw
-  // and so 0.4-0.7 m off in translation, yet within 2-5 cm where they map
-  // the UGV camera.
+  // turns the relation about the UGV: on no_initial_covisibility seed 2 six
+  // fixes were 0.46-0.71 m off in translation, their 0.34-0.53 deg yaw
+  // error times 72-86 m, yet within 3-5 cm where they map the UGV camera.
   r.covariance +=
       PivotedBiasCovariance(r.T_wa_wg, r.ugv_T_wg_c_refined.translation(), options_.bias_sigma_t_m,
                             options_.bias_sigma_yaw_deg * M_PI / 180);
