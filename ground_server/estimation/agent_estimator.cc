@@ -46,12 +46,6 @@ DepthRows RowsWithDepth(const UgvKeyframe& kf) {
   return rows;
 }
 
-struct PairCandidate {
-  int ugv = 0;  // index in the window
-  std::shared_ptr<const AirKeyframe> air;
-  double score = 0;
-};
-
 // What one air-ground correspondence came from.
 struct CorrespondenceSource {
   int pair = 0;
@@ -88,13 +82,21 @@ FixEvidence GateEvidence(const std::vector<std::shared_ptr<const AirKeyframe>>& 
 
 }  // namespace
 
+// A (UGV window keyframe, UAV keyframe) pair to match, with its retrieval
+// score.
+struct AgentEstimator::PairCandidate {
+  int ugv = 0;  // index in the window
+  std::shared_ptr<const AirKeyframe> air;
+  double score = 0;
+};
+
 Eigen::Matrix4d PivotedBiasCovariance(const Pose& T_wa_wg, const Eigen::Vector3d& pivot_wg,
                                       double sigma_t_m, double sigma_yaw_rad) {
   // T_wa_wg turned by e about the pivot's image q = R p + t keeps q: the
   // translation becomes t - e z x (R p) to first order.
-  const Eigen::Vector3d Rp = T_wa_wg.linear() * pivot_wg;
+  const Eigen::Vector3d pivot_rotated = T_wa_wg.linear() * pivot_wg;  // R p
   Eigen::Vector4d J;
-  J << -Eigen::Vector3d::UnitZ().cross(Rp), 1.0;
+  J << -Eigen::Vector3d::UnitZ().cross(pivot_rotated), 1.0;
   Eigen::Matrix4d C = sigma_yaw_rad * sigma_yaw_rad * J * J.transpose();
   C.topLeftCorner<3, 3>().diagonal().array() += sigma_t_m * sigma_t_m;
   return C;
@@ -170,9 +172,9 @@ bool AgentEstimator::HasAirCamera(const std::string& camera_id) const {
   return air_cameras_.count(camera_id) > 0;
 }
 
-void AgentEstimator::UpdateCameraRotation(
-    const std::deque<std::shared_ptr<const UgvKeyframe>>& window,
-    const std::vector<UgvTrack>& tracks, const std::vector<std::pair<int, int>>& track_key) {
+void AgentEstimator::UpdateCameraRotation(const UgvWindow& window,
+                                          const std::vector<UgvTrack>& tracks,
+                                          const std::vector<std::pair<int, int>>& track_key) {
   int added = 0;
   for (size_t t = 0; t < tracks.size(); ++t) {
     const UgvTrack& track = tracks[t];
@@ -222,24 +224,26 @@ Pose AgentEstimator::CorrectedCameraPose(const UgvKeyframe& kf) const {
   return T * camera_correction_;
 }
 
-EstimateResult AgentEstimator::Estimate(
-    int64_t t_ns, const std::deque<std::shared_ptr<const UgvKeyframe>>& window,
-    const AirKeyframeSource& source) {
-  const Stopwatch total;
-  EstimateResult r;
-  auto fail = [&](const std::string& reason) {
-    r.reason = reason;
-    r.gate = gate_.Failed(t_ns);
-    r.timing.total_ms = total.ElapsedMs();
-    return r;
-  };
-  if (window.empty()) return fail("no UGV keyframe yet");
+// What an estimate matched: the UAV keyframes of the pairs with enough
+// matches, and per correspondence a UAV ray against a UGV point with where
+// it came from.
+struct AgentEstimator::AirGroundMatches {
+  std::vector<std::shared_ptr<const AirKeyframe>> air_frames;
+  std::vector<RayPointCorrespondence> corr;
+  std::vector<CorrespondenceSource> origin;  // per corr
+  int used_pairs = 0;
+};
+
+// Stage 1's tracks, and the (window index, keypoint) each is hosted by.
+struct AgentEstimator::WindowTracks {
+  std::vector<UgvTrack> tracks;
+  std::vector<std::pair<int, int>> key;
+};
+
+std::vector<AgentEstimator::PairCandidate> AgentEstimator::SelectPairs(
+    const UgvWindow& window, const AirKeyframeSource& source, std::string* why) const {
   const int n_window = static_cast<int>(window.size());
   const UgvKeyframe& newest = *window.back();
-
-  // 1. Candidate pairs: retrieval for every window keyframe, plus the newest
-  //    UAV keyframes that the current fix says are co-visible.
-  Stopwatch step;
   std::vector<PairCandidate> candidates;
   for (int j = n_window - 1; j >= 0; --j) {
     for (const auto& c :
@@ -295,26 +299,19 @@ EstimateResult AgentEstimator::Estimate(
     }
     pairs.push_back(c);
   }
-  r.timing.retrieval_ms = step.ElapsedMs();
-  std::set<int64_t> air_seqs;
-  for (const auto& p : pairs) air_seqs.insert(p.air->seq);
-  r.candidates = static_cast<int>(air_seqs.size());
   if (pairs.empty()) {
-    std::string why = "no UAV keyframe to match";
-    if (missing_camera) why += " (" + std::to_string(missing_camera) + " without camera_info)";
-    if (wrong_type) why += " (" + std::to_string(wrong_type) + " with another descriptor type)";
-    return fail(why);
+    *why = "no UAV keyframe to match";
+    if (missing_camera) *why += " (" + std::to_string(missing_camera) + " without camera_info)";
+    if (wrong_type) *why += " (" + std::to_string(wrong_type) + " with another descriptor type)";
   }
+  return pairs;
+}
 
-  // 2. Descriptor matching of every pair; correspondences of UGV 3-D points
-  //    and UAV rays.
-  step = Stopwatch();
+AgentEstimator::AirGroundMatches AgentEstimator::MatchPairs(
+    const UgvWindow& window, const std::vector<PairCandidate>& pairs) {
+  AirGroundMatches out;
   std::map<int, DepthRows> rows;
-  std::vector<std::shared_ptr<const AirKeyframe>> air_frames;
   std::map<int64_t, int> air_index;
-  std::vector<RayPointCorrespondence> corr;
-  std::vector<CorrespondenceSource> origin;
-  int used_pairs = 0;
   // Pairs whose UGV keyframe left the window are matched no more.
   for (auto e = match_cache_.begin(); e != match_cache_.end();) {
     const bool in_window = std::any_of(window.begin(), window.end(),
@@ -337,9 +334,9 @@ EstimateResult AgentEstimator::Estimate(
     }
     const std::vector<DescriptorMatch>& matches = cached->second.matches;
     if (static_cast<int>(matches.size()) < options_.min_matches) continue;
-    ++used_pairs;
-    auto [ai, inserted] = air_index.emplace(pc.air->seq, static_cast<int>(air_frames.size()));
-    if (inserted) air_frames.push_back(pc.air);
+    ++out.used_pairs;
+    auto [ai, inserted] = air_index.emplace(pc.air->seq, static_cast<int>(out.air_frames.size()));
+    if (inserted) out.air_frames.push_back(pc.air);
     const Camera& cam = *air_cameras_.at(pc.air->camera_id);
     for (const DescriptorMatch& m : matches) {
       const int ugv_kp = m.a;
@@ -351,12 +348,211 @@ EstimateResult AgentEstimator::Estimate(
       k.b_wa = pc.air->T_wa_c.linear() *
                Eigen::Vector3d(k.xy_normalized.x(), k.xy_normalized.y(), 1.0).normalized();
       k.air_frame = ai->second;
-      corr.push_back(k);
-      origin.push_back({static_cast<int>(p), pc.ugv, ugv_kp, m.b});
+      out.corr.push_back(k);
+      out.origin.push_back({static_cast<int>(p), pc.ugv, ugv_kp, m.b});
     }
   }
+  return out;
+}
+
+AgentEstimator::WindowTracks AgentEstimator::CollectTracks(const UgvWindow& window,
+                                                           const AirGroundMatches& matched,
+                                                           const std::vector<int>& inliers) const {
+  WindowTracks out;
+  std::map<std::pair<int, int>, int> track_of;
+  auto add_track = [&](int ugv, int keypoint) {
+    const auto key = std::make_pair(ugv, keypoint);
+    if (track_of.count(key)) return;
+    const UgvKeyframe& host = *window[ugv];
+    if (!host.has_point[keypoint]) return;
+    UgvTrack t;
+    t.host_frame = ugv;
+    t.f_host = ugv_camera_->UndistortToNormalized(host.features.keypoints[keypoint].cast<double>());
+    t.lidar_depth = (host.T_wg_c.inverse() * host.points_wg[keypoint]).z();
+    if (!(t.lidar_depth > 0.1)) return;
+    if (!host.planes_wg.empty()) t.plane = host.planes_wg[keypoint];
+    track_of[key] = static_cast<int>(out.tracks.size());
+    out.tracks.push_back(t);
+    out.key.push_back(key);
+  };
+  for (int i : inliers) add_track(matched.origin[i].ugv, matched.origin[i].ugv_keypoint);
+  // More points on map planes, from the newest keyframe, so the window's
+  // pose against the map is well determined even with few inliers.
+  const int newest = static_cast<int>(window.size()) - 1;
+  const UgvKeyframe& kf = *window[newest];
+  std::vector<int> on_planes;
+  for (int k = 0; k < static_cast<int>(kf.planes_wg.size()); ++k) {
+    if (kf.has_point[k] && kf.planes_wg[k].head<3>().squaredNorm() > 0.5) on_planes.push_back(k);
+  }
+  const int extra = options_.stage1_extra_tracks;
+  const double stride =
+      on_planes.size() > static_cast<size_t>(extra) ? on_planes.size() / double(extra) : 1.0;
+  for (double x = 0; x < on_planes.size(); x += stride) {
+    add_track(newest, on_planes[static_cast<size_t>(x)]);
+  }
+  return out;
+}
+
+void AgentEstimator::ObserveTracks(const UgvWindow& window, WindowTracks* tracks) const {
+  // Each host's tracked keypoints against the other window keyframes,
+  // keeping matches that reproject near the LiDAR point.
+  const int n_window = static_cast<int>(window.size());
+  std::map<int, std::vector<int>> tracks_by_host;
+  for (size_t t = 0; t < tracks->tracks.size(); ++t)
+    tracks_by_host[tracks->tracks[t].host_frame].push_back(static_cast<int>(t));
+  for (const auto& [host, ids] : tracks_by_host) {
+    cv::Mat sub(static_cast<int>(ids.size()), window[host]->features.dim(), CV_32F);
+    for (size_t s = 0; s < ids.size(); ++s) {
+      window[host]
+          ->features.descriptors.row(tracks->key[ids[s]].second)
+          .copyTo(sub.row(static_cast<int>(s)));
+    }
+    for (int m = 0; m < n_window; ++m) {
+      if (m == host) continue;
+      const UgvKeyframe& other = *window[m];
+      const Pose T_c_wg = other.T_wg_c.inverse();
+      for (const DescriptorMatch& dm :
+           MatchDescriptors(sub, other.features.descriptors, options_.matcher)) {
+        const int t = ids[dm.a];
+        const Eigen::Vector3d& p = window[host]->points_wg[tracks->key[t].second];
+        const Eigen::Vector2d uv = other.features.keypoints[dm.b].cast<double>();
+        Eigen::Vector2d predicted;
+        if (ugv_camera_->Project(T_c_wg * p, &predicted) &&
+            (predicted - uv).norm() < options_.track_gate_px) {
+          tracks->tracks[t].observations.emplace_back(m, uv);
+        }
+      }
+    }
+  }
+}
+
+void AgentEstimator::FuseWindowCorrection(const UgvWindow& window, const Stage1Result& s1,
+                                          size_t n_tracks) {
+  // This window's correction (mean over its frames), fused into the
+  // running one.
+  Pose window_correction = Pose::Identity();
+  for (size_t i = 0; i < window.size(); ++i) {
+    window_correction = InterpolatePose(window_correction,
+                                        window[i]->T_wg_c.inverse() * s1.T_wg_c[i], 1.0 / (i + 1));
+  }
+  correction_windows_ = std::min(correction_windows_ + 1, options_.stage1_fusion_windows);
+  camera_correction_ =
+      InterpolatePose(camera_correction_, window_correction, 1.0 / correction_windows_);
+  const Pose d = window_correction.inverse() * camera_correction_;
+  spdlog::debug(
+      "{} stage 1: {} tracks, {} on planes; window correction {:.3f} deg, fused ({} windows) "
+      "{:.3f} deg, differ by {:.3f} deg {:.3f} m",
+      agent_, n_tracks, s1.plane_tracks,
+      Eigen::AngleAxisd(window_correction.linear()).angle() * 180 / M_PI, correction_windows_,
+      Eigen::AngleAxisd(camera_correction_.linear()).angle() * 180 / M_PI,
+      Eigen::AngleAxisd(d.linear()).angle() * 180 / M_PI, d.translation().norm());
+}
+
+std::map<std::pair<int, int>, Eigen::Vector3d> AgentEstimator::RefineWindow(
+    const UgvWindow& window, const AirGroundMatches& matched, const std::vector<int>& inliers,
+    EstimateTiming* timing) {
+  std::map<std::pair<int, int>, Eigen::Vector3d> refined;  // (ugv, keypoint) -> p_wg
+  WindowTracks tracks = CollectTracks(window, matched, inliers);
+  const Stopwatch tracking;
+  ObserveTracks(window, &tracks);
+  timing->stage1_tracking_ms = tracking.ElapsedMs();
+  if (options_.camera_rotation.enabled) UpdateCameraRotation(window, tracks.tracks, tracks.key);
+  std::vector<UgvWindowFrame> frames;
+  frames.reserve(window.size());
+  for (const auto& kf : window) {
+    frames.push_back({kf->t_ns, CorrectedCameraPose(*kf), ugv_camera_.get()});
+  }
+  const Stage1Result s1 = RunStage1(frames, tracks.tracks, options_.stage1);
+  if (!s1.success) spdlog::debug("{} stage 1 skipped: {}", agent_, s1.reason);
+  if (s1.success && s1.anchored_to_map && !options_.camera_rotation.enabled) {
+    FuseWindowCorrection(window, s1, tracks.tracks.size());
+  }
+  std::map<std::pair<int, int>, double> track_depth;
+  if (s1.success) {
+    for (size_t t = 0; t < tracks.tracks.size(); ++t) {
+      if (!tracks.tracks[t].observations.empty()) track_depth[tracks.key[t]] = s1.depths[t];
+    }
+  }
+  // Every inlier point again from the corrected camera: the keypoint's ray
+  // cut with the map plane there, else at its (refined) depth.
+  for (int i : inliers) {
+    const auto key = std::make_pair(matched.origin[i].ugv, matched.origin[i].ugv_keypoint);
+    if (refined.count(key)) continue;
+    const UgvKeyframe& host = *window[key.first];
+    const Eigen::Vector2d f =
+        ugv_camera_->UndistortToNormalized(host.features.keypoints[key.second].cast<double>());
+    const Pose T_new = CorrectedCameraPose(host);
+    const Eigen::Vector3d ray_wg = T_new.linear() * Eigen::Vector3d(f.x(), f.y(), 1.0);
+    const auto tracked = track_depth.find(key);
+    double depth = tracked != track_depth.end()
+                       ? tracked->second
+                       : (host.T_wg_c.inverse() * host.points_wg[key.second]).z();
+    if (!host.planes_wg.empty() && host.planes_wg[key.second].head<3>().squaredNorm() > 0.5) {
+      const Eigen::Vector4d& plane = host.planes_wg[key.second];
+      const double denom = plane.head<3>().dot(ray_wg);
+      // Grazing rays (< ~10 deg to the plane) keep the depth.
+      if (std::abs(denom) > 0.17 * ray_wg.norm()) {
+        const double cut = -(plane.head<3>().dot(T_new.translation()) + plane[3]) / denom;
+        if (cut > 0.1 && std::abs(cut - depth) < 0.5) depth = cut;
+      }
+    }
+    if (depth > 0.1) refined[key] = T_new.translation() + depth * ray_wg;
+  }
+  return refined;
+}
+
+Eigen::Matrix4d AgentEstimator::RecentScatter(const Pose& T_wa_wg) {
+  Eigen::Vector4d x;
+  x << T_wa_wg.translation(), ProjectedYaw(T_wa_wg.linear());
+  if (!recent_estimates_.empty()) {
+    x[3] = recent_estimates_.back()[3] + WrapAngle(x[3] - recent_estimates_.back()[3]);
+  }
+  recent_estimates_.push_back(x);
+  while (static_cast<int>(recent_estimates_.size()) > options_.scatter_window) {
+    recent_estimates_.pop_front();
+  }
+  Eigen::Matrix4d scatter = Eigen::Matrix4d::Zero();
+  if (recent_estimates_.size() < 3) return scatter;
+  Eigen::Vector4d mean = Eigen::Vector4d::Zero();
+  for (const auto& e : recent_estimates_) mean += e;
+  mean /= static_cast<double>(recent_estimates_.size());
+  for (const auto& e : recent_estimates_) scatter += (e - mean) * (e - mean).transpose();
+  scatter /= static_cast<double>(recent_estimates_.size() - 1);
+  return scatter;
+}
+
+EstimateResult AgentEstimator::Estimate(int64_t t_ns, const UgvWindow& window,
+                                        const AirKeyframeSource& source) {
+  const Stopwatch total;
+  EstimateResult r;
+  auto fail = [&](const std::string& reason) {
+    r.reason = reason;
+    r.gate = gate_.Failed(t_ns);
+    r.timing.total_ms = total.ElapsedMs();
+    return r;
+  };
+  if (window.empty()) return fail("no UGV keyframe yet");
+  const int n_window = static_cast<int>(window.size());
+
+  // 1. Candidate pairs: retrieval for every window keyframe, plus the newest
+  //    UAV keyframes that the current fix says are co-visible.
+  Stopwatch step;
+  std::string why;
+  const std::vector<PairCandidate> pairs = SelectPairs(window, source, &why);
+  r.timing.retrieval_ms = step.ElapsedMs();
+  std::set<int64_t> air_seqs;
+  for (const auto& p : pairs) air_seqs.insert(p.air->seq);
+  r.candidates = static_cast<int>(air_seqs.size());
+  if (pairs.empty()) return fail(why);
+
+  // 2. Descriptor matching of every pair; correspondences of UGV 3-D points
+  //    and UAV rays.
+  step = Stopwatch();
+  const AirGroundMatches matched = MatchPairs(window, pairs);
+  const std::vector<std::shared_ptr<const AirKeyframe>>& air_frames = matched.air_frames;
+  const std::vector<RayPointCorrespondence>& corr = matched.corr;
   r.timing.matching_ms = step.ElapsedMs();
-  if (used_pairs == 0) {
+  if (matched.used_pairs == 0) {
     return fail("no keyframe pair with " + std::to_string(options_.min_matches) +
                 " descriptor matches (" + std::to_string(pairs.size()) + " pairs tried)");
   }
@@ -395,7 +591,7 @@ EstimateResult AgentEstimator::Estimate(
 
   // Per-pair inliers, for the consistency term.
   std::map<int, std::vector<int>> pair_inliers;
-  for (int i : inliers) pair_inliers[origin[i].pair].push_back(i);
+  for (int i : inliers) pair_inliers[matched.origin[i].pair].push_back(i);
 
   // 4. Stage 1: UGV window BA over the tracks of inlier UGV keypoints.
   step = Stopwatch();
@@ -403,133 +599,7 @@ EstimateResult AgentEstimator::Estimate(
   r.ugv_T_wg_c_lio = window.back()->T_wg_c;
   r.ugv_T_wg_c_refined = r.ugv_T_wg_c_lio;
   if (options_.use_stage1 && n_window >= 2) {
-    std::map<std::pair<int, int>, int> track_of;
-    std::vector<UgvTrack> tracks;
-    std::vector<std::pair<int, int>> track_key;
-    auto add_track = [&](int ugv, int keypoint) {
-      const auto key = std::make_pair(ugv, keypoint);
-      if (track_of.count(key)) return;
-      const UgvKeyframe& host = *window[ugv];
-      if (!host.has_point[keypoint]) return;
-      UgvTrack t;
-      t.host_frame = ugv;
-      t.f_host =
-          ugv_camera_->UndistortToNormalized(host.features.keypoints[keypoint].cast<double>());
-      t.lidar_depth = (host.T_wg_c.inverse() * host.points_wg[keypoint]).z();
-      if (!(t.lidar_depth > 0.1)) return;
-      if (!host.planes_wg.empty()) t.plane = host.planes_wg[keypoint];
-      track_of[key] = static_cast<int>(tracks.size());
-      tracks.push_back(t);
-      track_key.push_back(key);
-    };
-    for (int i : inliers) add_track(origin[i].ugv, origin[i].ugv_keypoint);
-    // More points on map planes, from the newest keyframe, so the window's
-    // pose against the map is well determined even with few inliers.
-    {
-      const int newest = n_window - 1;
-      const UgvKeyframe& kf = *window[newest];
-      std::vector<int> on_planes;
-      for (int k = 0; k < static_cast<int>(kf.planes_wg.size()); ++k) {
-        if (kf.has_point[k] && kf.planes_wg[k].head<3>().squaredNorm() > 0.5)
-          on_planes.push_back(k);
-      }
-      const int extra = options_.stage1_extra_tracks;
-      const double stride =
-          on_planes.size() > static_cast<size_t>(extra) ? on_planes.size() / double(extra) : 1.0;
-      for (double x = 0; x < on_planes.size(); x += stride) {
-        add_track(newest, on_planes[static_cast<size_t>(x)]);
-      }
-    }
-    // Observations: match each host's tracked keypoints against the other
-    // window keyframes, keeping matches that reproject near the LiDAR point.
-    const Stopwatch tracking;
-    std::map<int, std::vector<int>> tracks_by_host;
-    for (size_t t = 0; t < tracks.size(); ++t)
-      tracks_by_host[tracks[t].host_frame].push_back(static_cast<int>(t));
-    for (const auto& [host, ids] : tracks_by_host) {
-      cv::Mat sub(static_cast<int>(ids.size()), window[host]->features.dim(), CV_32F);
-      for (size_t s = 0; s < ids.size(); ++s) {
-        window[host]
-            ->features.descriptors.row(track_key[ids[s]].second)
-            .copyTo(sub.row(static_cast<int>(s)));
-      }
-      for (int m = 0; m < n_window; ++m) {
-        if (m == host) continue;
-        const UgvKeyframe& other = *window[m];
-        const Pose T_c_wg = other.T_wg_c.inverse();
-        for (const DescriptorMatch& dm :
-             MatchDescriptors(sub, other.features.descriptors, options_.matcher)) {
-          const int t = ids[dm.a];
-          const Eigen::Vector3d& p = window[host]->points_wg[track_key[t].second];
-          const Eigen::Vector2d uv = other.features.keypoints[dm.b].cast<double>();
-          Eigen::Vector2d predicted;
-          if (ugv_camera_->Project(T_c_wg * p, &predicted) &&
-              (predicted - uv).norm() < options_.track_gate_px) {
-            tracks[t].observations.emplace_back(m, uv);
-          }
-        }
-      }
-    }
-    r.timing.stage1_tracking_ms = tracking.ElapsedMs();
-    if (options_.camera_rotation.enabled) UpdateCameraRotation(window, tracks, track_key);
-    std::vector<UgvWindowFrame> frames;
-    frames.reserve(window.size());
-    for (const auto& kf : window) {
-      frames.push_back({kf->t_ns, CorrectedCameraPose(*kf), ugv_camera_.get()});
-    }
-    const Stage1Result s1 = RunStage1(frames, tracks, options_.stage1);
-    if (!s1.success) spdlog::debug("{} stage 1 skipped: {}", agent_, s1.reason);
-    if (s1.success && s1.anchored_to_map && !options_.camera_rotation.enabled) {
-      // This window's correction (mean over its frames), fused into the
-      // running one.
-      Pose window_correction = Pose::Identity();
-      for (int i = 0; i < n_window; ++i) {
-        window_correction = InterpolatePose(
-            window_correction, window[i]->T_wg_c.inverse() * s1.T_wg_c[i], 1.0 / (i + 1));
-      }
-      correction_windows_ = std::min(correction_windows_ + 1, options_.stage1_fusion_windows);
-      camera_correction_ =
-          InterpolatePose(camera_correction_, window_correction, 1.0 / correction_windows_);
-      const Pose d = window_correction.inverse() * camera_correction_;
-      spdlog::debug(
-          "{} stage 1: {} tracks, {} on planes; window correction {:.3f} deg, fused ({} windows) "
-          "{:.3f} deg, differ by {:.3f} deg {:.3f} m",
-          agent_, tracks.size(), s1.plane_tracks,
-          Eigen::AngleAxisd(window_correction.linear()).angle() * 180 / M_PI, correction_windows_,
-          Eigen::AngleAxisd(camera_correction_.linear()).angle() * 180 / M_PI,
-          Eigen::AngleAxisd(d.linear()).angle() * 180 / M_PI, d.translation().norm());
-    }
-    std::map<std::pair<int, int>, double> track_depth;
-    if (s1.success) {
-      for (size_t t = 0; t < tracks.size(); ++t) {
-        if (!tracks[t].observations.empty()) track_depth[track_key[t]] = s1.depths[t];
-      }
-    }
-    // Every inlier point again from the corrected camera: the keypoint's ray
-    // cut with the map plane there, else at its (refined) depth.
-    for (int i : inliers) {
-      const auto key = std::make_pair(origin[i].ugv, origin[i].ugv_keypoint);
-      if (refined.count(key)) continue;
-      const UgvKeyframe& host = *window[key.first];
-      const Eigen::Vector2d f =
-          ugv_camera_->UndistortToNormalized(host.features.keypoints[key.second].cast<double>());
-      const Pose T_new = CorrectedCameraPose(host);
-      const Eigen::Vector3d ray_wg = T_new.linear() * Eigen::Vector3d(f.x(), f.y(), 1.0);
-      const auto tracked = track_depth.find(key);
-      double depth = tracked != track_depth.end()
-                         ? tracked->second
-                         : (host.T_wg_c.inverse() * host.points_wg[key.second]).z();
-      if (!host.planes_wg.empty() && host.planes_wg[key.second].head<3>().squaredNorm() > 0.5) {
-        const Eigen::Vector4d& plane = host.planes_wg[key.second];
-        const double denom = plane.head<3>().dot(ray_wg);
-        // Grazing rays (< ~10 deg to the plane) keep the depth.
-        if (std::abs(denom) > 0.17 * ray_wg.norm()) {
-          const double cut = -(plane.head<3>().dot(T_new.translation()) + plane[3]) / denom;
-          if (cut > 0.1 && std::abs(cut - depth) < 0.5) depth = cut;
-        }
-      }
-      if (depth > 0.1) refined[key] = T_new.translation() + depth * ray_wg;
-    }
+    refined = RefineWindow(window, matched, inliers, &r.timing);
     r.ugv_T_wg_c_refined = CorrectedCameraPose(*window.back());
   }
   r.timing.stage1_ms = step.ElapsedMs();
@@ -554,7 +624,7 @@ EstimateResult AgentEstimator::Estimate(
   std::vector<AirGroundObservation> observations;
   std::vector<RayPointCorrespondence> refined_corr = corr;
   for (int i : inliers) {
-    const auto it = refined.find({origin[i].ugv, origin[i].ugv_keypoint});
+    const auto it = refined.find({matched.origin[i].ugv, matched.origin[i].ugv_keypoint});
     if (it != refined.end()) refined_corr[i].p_wg = it->second;
     observations.push_back({frame2_of[corr[i].air_frame], refined_corr[i].p_wg, corr[i].uv});
   }
@@ -583,26 +653,8 @@ EstimateResult AgentEstimator::Estimate(
   // map errors that vary with the geometry show up as scatter between
   // consecutive estimates instead. Report the sum, so the uncertainty never
   // claims more than successive estimates agree to.
-  Eigen::Vector4d x;
-  x << s2.T_wa_wg.translation(), ProjectedYaw(s2.T_wa_wg.linear());
-  if (!recent_estimates_.empty()) {
-    x[3] = recent_estimates_.back()[3] + WrapAngle(x[3] - recent_estimates_.back()[3]);
-  }
-  recent_estimates_.push_back(x);
-  while (static_cast<int>(recent_estimates_.size()) > options_.scatter_window) {
-    recent_estimates_.pop_front();
-  }
-  r.covariance = s2.covariance;
+  r.covariance = s2.covariance + RecentScatter(s2.T_wa_wg);
   r.T_wa_wg_single = s2.T_wa_wg;
-  if (recent_estimates_.size() >= 3) {
-    Eigen::Vector4d mean = Eigen::Vector4d::Zero();
-    for (const auto& e : recent_estimates_) mean += e;
-    mean /= static_cast<double>(recent_estimates_.size());
-    Eigen::Matrix4d scatter = Eigen::Matrix4d::Zero();
-    for (const auto& e : recent_estimates_) scatter += (e - mean) * (e - mean).transpose();
-    scatter /= static_cast<double>(recent_estimates_.size() - 1);
-    r.covariance += scatter;
-  }
   r.has_covariance = s2.has_covariance;
   r.inliers = static_cast<int>(inliers.size());
   r.pairs = static_cast<int>(pair_inliers.size());

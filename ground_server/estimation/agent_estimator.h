@@ -43,6 +43,9 @@ struct UgvKeyframe {
   std::vector<Eigen::Vector4d> planes_wg;
 };
 
+/// The UGV sliding window, oldest keyframe first.
+using UgvWindow = std::deque<std::shared_ptr<const UgvKeyframe>>;
+
 /// Where UAV keyframes come from (the place database in the daemon).
 class AirKeyframeSource {
  public:
@@ -204,9 +207,7 @@ class AgentEstimator {
   bool HasAirCamera(const std::string& camera_id) const;
 
   /// One estimate at ground time t_ns over the UGV window (oldest first).
-  EstimateResult Estimate(int64_t t_ns,
-                          const std::deque<std::shared_ptr<const UgvKeyframe>>& window,
-                          const AirKeyframeSource& source);
+  EstimateResult Estimate(int64_t t_ns, const UgvWindow& window, const AirKeyframeSource& source);
 
   const std::string& agent() const { return agent_; }
   const FixGate& gate() const { return gate_; }
@@ -222,11 +223,43 @@ class AgentEstimator {
   Pose CorrectedCameraPose(const UgvKeyframe& kf) const;
 
  private:
+  // The steps of Estimate; the types are defined in the .cc.
+  struct PairCandidate;
+  struct AirGroundMatches;
+  struct WindowTracks;
+
+  /// Step 1: the (window keyframe, UAV keyframe) pairs to match, best first,
+  /// at most max_pairs; empty with *why set when there is none.
+  std::vector<PairCandidate> SelectPairs(const UgvWindow& window, const AirKeyframeSource& source,
+                                         std::string* why) const;
+  /// Step 2: every pair's descriptor matches (match_cache_) as UAV rays
+  /// against UGV points.
+  AirGroundMatches MatchPairs(const UgvWindow& window, const std::vector<PairCandidate>& pairs);
+  /// Step 4, stage 1: the window BA over the inliers' UGV keypoints (and
+  /// map-plane points of the newest keyframe), which also updates the
+  /// camera calibration; returns every inlier's point as seen from the
+  /// corrected cameras, keyed by (window index, keypoint).
+  std::map<std::pair<int, int>, Eigen::Vector3d> RefineWindow(const UgvWindow& window,
+                                                              const AirGroundMatches& matched,
+                                                              const std::vector<int>& inliers,
+                                                              EstimateTiming* timing);
+  /// Stage 1's tracks: the inliers' UGV keypoints with depth, then points
+  /// on map planes from the newest keyframe.
+  WindowTracks CollectTracks(const UgvWindow& window, const AirGroundMatches& matched,
+                             const std::vector<int>& inliers) const;
+  /// Finds each track in the other window keyframes (UGV-UGV matches that
+  /// reproject within track_gate_px of its LiDAR point).
+  void ObserveTracks(const UgvWindow& window, WindowTracks* tracks) const;
+  /// Without the calibrator: fuses this window's stage-1 camera correction
+  /// into the running one.
+  void FuseWindowCorrection(const UgvWindow& window, const Stage1Result& s1, size_t n_tracks);
   /// Feeds this window's map-plane tracks to camera_rotation_ and takes its
   /// new estimate as the camera correction.
-  void UpdateCameraRotation(const std::deque<std::shared_ptr<const UgvKeyframe>>& window,
-                            const std::vector<UgvTrack>& tracks,
+  void UpdateCameraRotation(const UgvWindow& window, const std::vector<UgvTrack>& tracks,
                             const std::vector<std::pair<int, int>>& track_key);
+  /// Adds this estimate to recent_estimates_ and returns their scatter
+  /// (zero for fewer than three).
+  Eigen::Matrix4d RecentScatter(const Pose& T_wa_wg);
 
   std::string agent_;
   EstimatorOptions options_;

@@ -261,7 +261,7 @@ struct GroundServerApp::Impl {
 
   std::mutex window_mutex;
   std::condition_variable window_cv;
-  std::deque<std::shared_ptr<const UgvKeyframe>> window;
+  UgvWindow window;
   uint64_t window_generation = 0;
 
   std::mutex agents_mutex;
@@ -381,7 +381,7 @@ void GroundServerApp::Impl::AgentLoop(AgentState* agent) {
     return since > 2 * period;
   };
   while (!stopping) {
-    std::deque<std::shared_ptr<const UgvKeyframe>> snapshot;
+    UgvWindow snapshot;
     {
       std::unique_lock<std::mutex> lock(window_mutex);
       window_cv.wait_for(lock, std::chrono::milliseconds(200), [&] {

@@ -173,7 +173,7 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   report.has_groundtruth = dataset.groundtruth.has_value();
   for (const auto& s : air) report.agents[s.name];
 
-  std::deque<std::shared_ptr<const UgvKeyframe>> window;
+  UgvWindow window;
   std::deque<Event> pending;  // scans and UGV images waiting for odometry
   std::optional<int64_t> last_estimate;
   int64_t ugv_id = 0;

@@ -144,7 +144,7 @@ class AgentEstimatorTest : public ::testing::Test {
   World world_;
   std::shared_ptr<Camera> camera_;
   Pose T_wa_wg_;
-  std::deque<std::shared_ptr<const UgvKeyframe>> window_;
+  UgvWindow window_;
   VectorSource source_;
 };
 
