@@ -382,7 +382,7 @@ AgentEstimator::WindowTracks AgentEstimator::CollectTracks(const UgvWindow& wind
   const UgvKeyframe& kf = *window[newest];
   std::vector<int> on_planes;
   for (int k = 0; k < static_cast<int>(kf.planes_wg.size()); ++k) {
-    if (kf.has_point[k] && kf.planes_wg[k].head<3>().squaredNorm() > 0.5) on_planes.push_back(k);
+    if (kf.has_point[k] && kf.has_plane(k)) on_planes.push_back(k);
   }
   const int extra = options_.stage1_extra_tracks;
   const double stride =
@@ -487,7 +487,7 @@ std::map<std::pair<int, int>, Eigen::Vector3d> AgentEstimator::RefineWindow(
     double depth = tracked != track_depth.end()
                        ? tracked->second
                        : (host.T_wg_c.inverse() * host.points_wg[key.second]).z();
-    if (!host.planes_wg.empty() && host.planes_wg[key.second].head<3>().squaredNorm() > 0.5) {
+    if (host.has_plane(key.second)) {
       const Eigen::Vector4d& plane = host.planes_wg[key.second];
       const double denom = plane.head<3>().dot(ray_wg);
       // Grazing rays (< ~10 deg to the plane) keep the depth.

@@ -36,6 +36,10 @@ struct UgvWindowFrame {
   const Camera* camera = nullptr;
 };
 
+/// True when `plane` holds a map surface (n, d) with |n| = 1; planes are all
+/// zero where the map is not flat.
+inline bool IsMapPlane(const Eigen::Vector4d& plane) { return plane.head<3>().squaredNorm() > 0.5; }
+
 /// A map point tracked over UGV keyframes of the window.
 struct UgvTrack {
   int host_frame = 0;      ///< frame whose ray anchors the point
@@ -44,7 +48,7 @@ struct UgvTrack {
   /// The map surface at the point, (n, d) with n.p + d = 0 in wg, |n| = 1;
   /// zero when the map is not flat there.
   Eigen::Vector4d plane = Eigen::Vector4d::Zero();
-  bool has_plane() const { return plane.head<3>().squaredNorm() > 0.5; }
+  bool has_plane() const { return IsMapPlane(plane); }
   /// (frame, pixel) of every other observation.
   std::vector<std::pair<int, Eigen::Vector2d>> observations;
 };
