@@ -15,13 +15,13 @@ constexpr double kDegToRad = M_PI / 180.0;
 
 /// Prior of the correction towards zero (the nominal extrinsic).
 struct RotationPriorError {
-  explicit RotationPriorError(double sigma_rad) : inv_sigma_(1.0 / sigma_rad) {}
+  explicit RotationPriorError(double sigma_rad) : inv_sigma(1.0 / sigma_rad) {}
   template <typename T>
   bool operator()(const T* d, T* residual) const {
-    for (int i = 0; i < 3; ++i) residual[i] = d[i] * T(inv_sigma_);
+    for (int i = 0; i < 3; ++i) residual[i] = d[i] * T(inv_sigma);
     return true;
   }
-  double inv_sigma_;
+  double inv_sigma;
 };
 
 bool AllFinite(const PlaneTrackObservation& o) {
