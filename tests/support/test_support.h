@@ -41,4 +41,4 @@ class TempDir {
     GTEST_SKIP() << "needs ../shared/" << (relative)                                      \
                  << " (set AG_SHARED_DIR to the shared folder); not found, test skipped"; \
   }                                                                                       \
-  const std::string var = *var##_opt
+  const std::string& var = *var##_opt

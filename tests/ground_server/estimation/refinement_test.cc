@@ -79,10 +79,11 @@ TEST(CostFunctionTest, ReprojectionResidualsVanishAtTheTruth) {
   ASSERT_TRUE(camera.Project(T_wg_j.inverse() * (T_wg_h * p_h), &uv_j));
   InverseDepthReprojectionError g(&camera, p_h.head<2>() / p_h.z(), uv_j, 1.0);
   const Eigen::Quaterniond qh(T_wg_h.linear()), qj(T_wg_j.linear());
-  const double qh_[4] = {qh.x(), qh.y(), qh.z(), qh.w()}, qj_[4] = {qj.x(), qj.y(), qj.z(), qj.w()};
+  const double qh_xyzw[4] = {qh.x(), qh.y(), qh.z(), qh.w()},
+               qj_xyzw[4] = {qj.x(), qj.y(), qj.z(), qj.w()};
   const Eigen::Vector3d th = T_wg_h.translation(), tj = T_wg_j.translation();
   const double rho = 0.25;
-  ASSERT_TRUE(g(qh_, th.data(), qj_, tj.data(), &rho, r));
+  ASSERT_TRUE(g(qh_xyzw, th.data(), qj_xyzw, tj.data(), &rho, r));
   EXPECT_NEAR(r[0], 0, 1e-9);
   EXPECT_NEAR(r[1], 0, 1e-9);
 }
@@ -169,10 +170,10 @@ TEST(CostFunctionTest, RelativePoseResidualIsZeroForTheMeasuredMotion) {
   RelativePoseError f(Eigen::Quaterniond(T_ab.linear()), T_ab.translation(), 0.1, 0.01);
   const Eigen::Quaterniond qa(A.linear()), qb(B.linear());
   // -q_b is the same rotation: the residual must not flip.
-  const double qa_[4] = {qa.x(), qa.y(), qa.z(), qa.w()};
-  const double qb_[4] = {-qb.x(), -qb.y(), -qb.z(), -qb.w()};
+  const double qa_xyzw[4] = {qa.x(), qa.y(), qa.z(), qa.w()};
+  const double qb_xyzw[4] = {-qb.x(), -qb.y(), -qb.z(), -qb.w()};
   double r[6];
-  ASSERT_TRUE(f(qa_, A.translation().data(), qb_, B.translation().data(), r));
+  ASSERT_TRUE(f(qa_xyzw, A.translation().data(), qb_xyzw, B.translation().data(), r));
   for (double v : r) EXPECT_NEAR(v, 0, 1e-9);
 }
 

@@ -154,7 +154,10 @@ PosedScan MakeScan(int k, int n) {
       Eigen::AngleAxisd(0.1 * k, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   scan.T_wg_lidar.translation() = Eigen::Vector3d(0.5 * k, 0.0, 1.0);
   // Points spread over distinct voxels, one marker point per scan at its own spot.
-  for (int i = 0; i < n; ++i) scan.points_l.emplace_back(0.3f * (i % 20), 0.3f * (i / 20), 0.0f);
+  for (int i = 0; i < n; ++i) {
+    const int column = i % 20, row = i / 20;
+    scan.points_l.emplace_back(0.3f * column, 0.3f * row, 0.0f);
+  }
   return scan;
 }
 

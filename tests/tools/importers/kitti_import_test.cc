@@ -248,16 +248,16 @@ TEST_F(KittiImportTest, PseudoAirAgentLivesInTheGivenWorld) {
   AG_REQUIRE_SHARED(drive, kDrive);
   Import(drive, PseudoAirOptions());
   const Dataset dataset = ReadDataset(*out_ / "kitti");
-  const Pose expected_T_wa_wg = MakePose4Dof(-5.0, 2.5, 1.25, 30.0 * M_PI / 180.0);
+  const Pose T_wa_wg_expected = MakePose4Dof(-5.0, 2.5, 1.25, 30.0 * M_PI / 180.0);
   ASSERT_TRUE(dataset.groundtruth.has_value());
   ASSERT_EQ(dataset.groundtruth->T_wa_wg.count("kitti_air"), 1u);
-  EXPECT_EQ(dataset.groundtruth->T_wa_wg.at("kitti_air").matrix(), expected_T_wa_wg.matrix());
+  EXPECT_EQ(dataset.groundtruth->T_wa_wg.at("kitti_air").matrix(), T_wa_wg_expected.matrix());
 
   const AgentData& air = dataset.air.at("kitti_air");
   ASSERT_EQ(air.odometry.size(), dataset.ground.odometry.size());
   ASSERT_EQ(air.groundtruth.size(), dataset.ground.odometry.size());
   for (size_t i = 0; i < air.odometry.size(); ++i) {
-    const Pose expected = expected_T_wa_wg * dataset.ground.odometry[i].T;
+    const Pose expected = T_wa_wg_expected * dataset.ground.odometry[i].T;
     EXPECT_EQ(air.odometry[i].t_ns, dataset.ground.odometry[i].t_ns);
     EXPECT_LT(MaxAbsDiff(air.odometry[i].T, expected), 1e-12) << i;
     EXPECT_LT(MaxAbsDiff(air.groundtruth[i].T, expected), 1e-12) << i;

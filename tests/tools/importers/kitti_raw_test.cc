@@ -116,12 +116,12 @@ Eigen::Matrix4d DevkitPose(const OxtsPacket& p, double lat0) {
   const double tx = scale * p.lon_deg * M_PI * er / 180.0;
   const double ty = scale * er * std::log(std::tan((90.0 + p.lat_deg) * M_PI / 360.0));
   const double rx = p.roll, ry = p.pitch, rz = p.yaw;
-  Eigen::Matrix3d Rx, Ry, Rz;
-  Rx << 1, 0, 0, 0, std::cos(rx), -std::sin(rx), 0, std::sin(rx), std::cos(rx);
-  Ry << std::cos(ry), 0, std::sin(ry), 0, 1, 0, -std::sin(ry), 0, std::cos(ry);
-  Rz << std::cos(rz), -std::sin(rz), 0, std::sin(rz), std::cos(rz), 0, 0, 0, 1;
+  Eigen::Matrix3d R_x, R_y, R_z;
+  R_x << 1, 0, 0, 0, std::cos(rx), -std::sin(rx), 0, std::sin(rx), std::cos(rx);
+  R_y << std::cos(ry), 0, std::sin(ry), 0, 1, 0, -std::sin(ry), 0, std::cos(ry);
+  R_z << std::cos(rz), -std::sin(rz), 0, std::sin(rz), std::cos(rz), 0, 0, 0, 1;
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
-  T.topLeftCorner<3, 3>() = Rz * Ry * Rx;
+  T.topLeftCorner<3, 3>() = R_z * R_y * R_x;
   T.topRightCorner<3, 1>() = Eigen::Vector3d(tx, ty, p.alt_m);
   return T;
 }
