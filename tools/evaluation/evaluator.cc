@@ -63,13 +63,13 @@ int64_t SecondsToNs(double s) { return static_cast<int64_t>(std::llround(s * 1e9
 
 // A dataset item in the merged timeline. Equal times: odometry first, so a
 // sensor sample at the same time can already be posed.
-struct Event {
+struct TimelineEvent {
   enum Type { kGroundOdometry = 0, kScan = 1, kUgvImage = 2, kAirImage = 3 };
   int64_t t_ns = 0;  // body time
   Type type = kGroundOdometry;
   int agent = 0;     // index into air agents (kAirImage)
   size_t index = 0;  // into the agent's poses / scans / images
-  bool operator<(const Event& o) const {
+  bool operator<(const TimelineEvent& o) const {
     if (t_ns != o.t_ns) return t_ns < o.t_ns;
     if (type != o.type) return type < o.type;
     if (agent != o.agent) return agent < o.agent;
@@ -135,13 +135,13 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   const CameraCalibration& ugv_cam = dataset.ground.calibration.camera;
   const double lidar_offset_s =
       dataset.ground.calibration.lidar ? dataset.ground.calibration.lidar->time_offset_s : 0.0;
-  std::vector<Event> events;
+  std::vector<TimelineEvent> events;
   for (size_t i = 0; i < dataset.ground.odometry.size(); ++i) {
-    events.push_back({dataset.ground.odometry[i].t_ns, Event::kGroundOdometry, 0, i});
+    events.push_back({dataset.ground.odometry[i].t_ns, TimelineEvent::kGroundOdometry, 0, i});
   }
   for (size_t i = 0; i < dataset.ground.scans.size(); ++i) {
     events.push_back(
-        {dataset.ground.scans[i].t_ns + SecondsToNs(lidar_offset_s), Event::kScan, 0, i});
+        {dataset.ground.scans[i].t_ns + SecondsToNs(lidar_offset_s), TimelineEvent::kScan, 0, i});
   }
   int64_t last_ugv = std::numeric_limits<int64_t>::min();
   for (size_t i = 0; i < dataset.ground.images.size(); ++i) {
@@ -151,12 +151,12 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
       continue;
     }
     last_ugv = t;
-    events.push_back({t + SecondsToNs(ugv_cam.time_offset_s), Event::kUgvImage, 0, i});
+    events.push_back({t + SecondsToNs(ugv_cam.time_offset_s), TimelineEvent::kUgvImage, 0, i});
   }
   for (size_t a = 0; a < air.size(); ++a) {
     const double offset = air[a].data->calibration.camera.time_offset_s;
     for (size_t i = 0; i < air[a].data->images.size(); ++i) {
-      events.push_back({air[a].data->images[i].t_ns + SecondsToNs(offset), Event::kAirImage,
+      events.push_back({air[a].data->images[i].t_ns + SecondsToNs(offset), TimelineEvent::kAirImage,
                         static_cast<int>(a), i});
     }
   }
@@ -174,7 +174,7 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   for (const auto& s : air) report.agents[s.name];
 
   UgvWindow window;
-  std::deque<Event> pending;  // scans and UGV images waiting for odometry
+  std::deque<TimelineEvent> pending;  // scans and UGV images waiting for odometry
   std::optional<int64_t> last_estimate;
   int64_t ugv_id = 0;
 
@@ -325,8 +325,8 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
   // Handles pending ground items whose pose is now known, in time order.
   auto drain_pending = [&]() {
     while (!pending.empty()) {
-      const Event e = pending.front();
-      if (e.type == Event::kScan) {
+      const TimelineEvent e = pending.front();
+      if (e.type == TimelineEvent::kScan) {
         const SensorFrame& frame = dataset.ground.scans[e.index];
         PosedScan scan;
         const PoseLookupStatus st = ugv.PoseScan(frame.t_ns, {}, odometry, &scan);
@@ -354,19 +354,19 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
     }
   };
 
-  for (const Event& e : events) {
+  for (const TimelineEvent& e : events) {
     if (e.t_ns > t_end) break;
     switch (e.type) {
-      case Event::kGroundOdometry:
+      case TimelineEvent::kGroundOdometry:
         odometry.Add(dataset.ground.odometry[e.index]);
         drain_pending();
         break;
-      case Event::kScan:
-      case Event::kUgvImage:
+      case TimelineEvent::kScan:
+      case TimelineEvent::kUgvImage:
         pending.push_back(e);
         drain_pending();
         break;
-      case Event::kAirImage: {
+      case TimelineEvent::kAirImage: {
         AirAgentState& s = air[e.agent];
         const SensorFrame& frame = s.data->images[e.index];
         const InterpolationResult vio = InterpolateInBuffer(s.data->odometry, e.t_ns);
