@@ -63,6 +63,7 @@ std::vector<Eigen::Vector3d> RandomPoints(int n, unsigned seed, double max_later
 
 std::vector<cv::Point3d> ToCv(const std::vector<Eigen::Vector3d>& points) {
   std::vector<cv::Point3d> out;
+  out.reserve(points.size());
   for (const auto& p : points) out.emplace_back(p.x(), p.y(), p.z());
   return out;
 }

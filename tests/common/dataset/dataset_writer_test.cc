@@ -31,6 +31,7 @@ Pose RandomPose(std::mt19937& rng) {
 
 std::vector<StampedPose> RandomTrajectory(std::mt19937& rng, int64_t t0_ns, int n) {
   std::vector<StampedPose> poses;
+  poses.reserve(n);
   for (int i = 0; i < n; ++i) poses.push_back({t0_ns + i * 10000003LL, RandomPose(rng)});
   return poses;
 }
@@ -384,6 +385,7 @@ TEST(DatasetWriterTest, SixtySecondDatasetReads) {
   const int64_t t0 = 1700000000000000000LL;
   for (const std::string agent : {"ground", "uav1", "uav2"}) {
     std::vector<StampedPose> odometry;
+    odometry.reserve(6000);
     for (int i = 0; i < 6000; ++i) odometry.push_back({t0 + i * 10000000LL, RandomPose(rng)});
     writer.SetOdometry(agent, odometry);
     writer.SetGroundTruthTrajectory(agent, odometry);

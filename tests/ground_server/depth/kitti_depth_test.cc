@@ -126,6 +126,7 @@ void CompareOnKitti(const std::string& day, int num_scans, Agreement* out) {
   std::vector<cv::Point2f> corners;
   cv::goodFeaturesToTrack(image, corners, 1024, 0.005, 5);
   std::vector<Eigen::Vector2f> keypoints;
+  keypoints.reserve(corners.size());
   for (const auto& c : corners) keypoints.emplace_back(c.x, c.y);
   ASSERT_GT(keypoints.size(), 500u);
 

@@ -67,6 +67,7 @@ TEST(SimDepthTest, KeypointDepthsAgreeWithTheGroundTruthDepthImages) {
     std::vector<cv::Point2f> corners;
     cv::goodFeaturesToTrack(image, corners, 1024, 0.001, 5);
     std::vector<Eigen::Vector2f> kps;
+    kps.reserve(corners.size());
     for (const auto& c : corners) kps.emplace_back(c.x, c.y);
     DepthAssociationResult result;
     {

@@ -241,8 +241,9 @@ TEST_F(AgentEstimatorTest, ExplainsMissingCameraInfoAndEmptyWindow) {
 }
 
 // Seconds as the nanosecond times frames carry.
-std::vector<int64_t> Seconds(std::vector<double> s) {
+std::vector<int64_t> Seconds(const std::vector<double>& s) {
   std::vector<int64_t> t;
+  t.reserve(s.size());
   for (double x : s) t.push_back(static_cast<int64_t>(x * 1e9));
   return t;
 }

@@ -42,7 +42,7 @@ inline std::string CachedSmallDataset(double duration_s, uint64_t seed) {
   key << std::hex << std::hash<std::string>{}(ScenarioToYaml(scenario)) << "_seed" << std::dec
       << seed;
   const std::string cache = BuildDir() + "/test_data";
-  const std::string dir = cache + "/small_" + key.str();
+  std::string dir = cache + "/small_" + key.str();
   if (fs::exists(dir + "/dataset.yaml")) return dir;
   fs::create_directories(cache);
   const int lock = open((cache + "/.lock").c_str(), O_CREAT | O_RDWR, 0644);

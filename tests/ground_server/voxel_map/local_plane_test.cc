@@ -25,6 +25,7 @@ TEST(LocalPlaneTest, FitsATiltedNoisyPlane) {
   const Eigen::Vector3f a = normal.unitOrthogonal();
   const Eigen::Vector3f b = normal.cross(a);
   std::vector<Eigen::Vector3f> points;
+  points.reserve(4000);
   for (int i = 0; i < 4000; ++i) points.push_back(u(rng) * a + u(rng) * b + n(rng) * normal);
   const auto plane = FitLocalPlane(Grid(points), Eigen::Vector3d(0.1, 0.1, 0.0));
   ASSERT_TRUE(plane.has_value());

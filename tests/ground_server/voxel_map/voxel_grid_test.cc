@@ -20,6 +20,7 @@ std::vector<Eigen::Vector3f> RandomCloud(std::mt19937& rng, int n, const Eigen::
                                          const Eigen::Vector3f& hi) {
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   std::vector<Eigen::Vector3f> cloud;
+  cloud.reserve(n);
   for (int i = 0; i < n; ++i) {
     cloud.emplace_back(lo.x() + (hi.x() - lo.x()) * u(rng), lo.y() + (hi.y() - lo.y()) * u(rng),
                        lo.z() + (hi.z() - lo.z()) * u(rng));
@@ -164,6 +165,7 @@ TEST(VoxelGridTest, KeepsAtMostMaxPointsPerVoxelAndRejectsBadPoints) {
   ASSERT_FALSE(options.keep_latest);  // the default, as iVox
   VoxelGrid grid(options);
   std::vector<Eigen::Vector3f> points;
+  points.reserve(12);
   for (int i = 0; i < 10; ++i) points.emplace_back(0.01f + 0.005f * i, 0.05f, 0.05f);
   points.emplace_back(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f);
   points.emplace_back(1e9f, 0.0f, 0.0f);  // beyond the eviction radius
@@ -207,6 +209,7 @@ TEST(VoxelGridTest, KeepLatestReplacesAFullVoxelsOldestPoints) {
   VoxelGrid grid(options);
   const auto at = [](int i) { return Eigen::Vector3f(0.01f + 0.008f * i, 0.05f, 0.05f); };
   std::vector<Eigen::Vector3f> first;
+  first.reserve(5);
   for (int i = 0; i < 5; ++i) first.push_back(at(i));
   VoxelInsertStats stats = grid.Insert(first, Eigen::Vector3d::Zero());
   EXPECT_EQ(stats.points_added, 3u);

@@ -189,6 +189,7 @@ TEST(VoxelMapBuilderTest, ThreadConsumesTheQueueAndDropsTheOldestWhenFull) {
   options.queue_capacity = 3;
   VoxelMapBuilder builder(&map, options);
   std::vector<PosedScan> scans;
+  scans.reserve(10);
   for (int k = 0; k < 10; ++k) scans.push_back(MakeScan(k, 50));
   // Not started yet: the queue fills and the oldest are dropped.
   for (const auto& scan : scans) ASSERT_TRUE(builder.Push(scan));

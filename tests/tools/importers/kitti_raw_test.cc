@@ -320,7 +320,7 @@ TEST(KittiVelodyne, ReadsPointsAndReflectance) {
 std::string WriteSyntheticDrive(const std::string& root, int listed,
                                 const std::vector<int>& present) {
   const std::string day = root + "/2011_01_01";
-  const std::string drive = day + "/2011_01_01_drive_0007_sync";
+  std::string drive = day + "/2011_01_01_drive_0007_sync";
   WriteCalibrationFiles(day);
   std::string oxts_tail;
   for (int i = 6; i < 30; ++i) oxts_tail += " 0";

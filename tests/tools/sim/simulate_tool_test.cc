@@ -124,10 +124,10 @@ Residuals LidarVersusDepth(const Dataset& ds, const std::string& dir,
 
 // One run of the tool on the small preset (the slow part), checked several ways.
 TEST_F(SimulateTool, SmallPresetReadsBackAndLidarAgreesWithDepth) {
-  const std::string dataset_ = temp_ / "small";
-  ASSERT_EQ(RunTool("--seed 3 --out " + dataset_), 0) << "simulate failed: " << Tool();
+  const std::string dataset_dir = temp_ / "small";
+  ASSERT_EQ(RunTool("--seed 3 --out " + dataset_dir), 0) << "simulate failed: " << Tool();
 
-  const Dataset ds = ReadDataset(dataset_);
+  const Dataset ds = ReadDataset(dataset_dir);
   EXPECT_EQ(ds.name, "small");
   EXPECT_GE(ds.ground.images.size(), 15u);
   EXPECT_GE(ds.ground.scans.size(), 15u);
@@ -141,8 +141,9 @@ TEST_F(SimulateTool, SmallPresetReadsBackAndLidarAgreesWithDepth) {
   ASSERT_TRUE(ds.groundtruth->ground_true_camera.has_value());
   // Ground-truth depth beside every image (small preset: on).
   for (const auto& frame : ds.ground.images) {
-    const cv::Mat depth = cv::imread(
-        dataset_ + "/ground/depth/" + std::to_string(frame.t_ns) + ".tiff", cv::IMREAD_UNCHANGED);
+    const cv::Mat depth =
+        cv::imread(dataset_dir + "/ground/depth/" + std::to_string(frame.t_ns) + ".tiff",
+                   cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(depth.empty()) << frame.t_ns;
     EXPECT_EQ(depth.type(), CV_32FC1);
   }
@@ -155,7 +156,7 @@ TEST_F(SimulateTool, SmallPresetReadsBackAndLidarAgreesWithDepth) {
 
   ASSERT_TRUE(ds.groundtruth && ds.groundtruth->ground_true_camera &&
               ds.groundtruth->ground_true_lidar);
-  const Residuals truth = LidarVersusDepth(ds, dataset_, *ds.groundtruth->ground_true_camera,
+  const Residuals truth = LidarVersusDepth(ds, dataset_dir, *ds.groundtruth->ground_true_camera,
                                            *ds.groundtruth->ground_true_lidar);
   ASSERT_GT(truth.count, 5000u);
   // Unbiased to well under a centimetre; the spread is the 2 cm range noise.
@@ -164,7 +165,7 @@ TEST_F(SimulateTool, SmallPresetReadsBackAndLidarAgreesWithDepth) {
   // The nominal calibration (what calibration.yaml says) is measurably off:
   // that is the error the first optimisation stage must absorb.
   const Residuals nominal =
-      LidarVersusDepth(ds, dataset_, ds.ground.calibration.camera, *ds.ground.calibration.lidar);
+      LidarVersusDepth(ds, dataset_dir, ds.ground.calibration.camera, *ds.ground.calibration.lidar);
   EXPECT_GT(nominal.median_abs, truth.median_abs);
   std::printf(
       "LiDAR vs depth over %zu points: true calibration median %.2f mm (|.| %.2f mm), nominal |.| "
