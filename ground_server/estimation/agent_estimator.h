@@ -41,6 +41,7 @@ struct UgvKeyframe {
   /// |n| = 1; all zero where the map is not flat there (or no point). Empty
   /// when the frontend computed none.
   std::vector<Eigen::Vector4d> planes_wg;
+  /// Whether keypoint k lies on a map plane (false when none were computed).
   bool has_plane(int k) const { return !planes_wg.empty() && IsMapPlane(planes_wg[k]); }
 };
 
