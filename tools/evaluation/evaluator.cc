@@ -10,6 +10,7 @@
 #include <random>
 
 #include "common/config/options.h"
+#include "common/dataset/ground_truth.h"
 #include "common/geometry/tum_io.h"
 #include "common/pcd/pcd_io.h"
 #include "common/wire/channels.h"
@@ -20,44 +21,6 @@ namespace ag {
 namespace {
 
 constexpr int64_t kSecond = 1000000000LL;
-
-/// Where an agent's odometry world is in its true world at t_ns:
-/// T_world_odom = T_world_body(t) T_odom_body(t)^-1 (identity without
-/// drift). `body_offset` is what the odometry tracks instead of the body
-/// (LIO tracks the LiDAR: T_b_l_true T_b_l_nominal^-1), so that a constant
-/// mounting error is not mistaken for drift.
-std::optional<Pose> OdometryWorldInTrueWorld(const AgentData& agent, int64_t t_ns,
-                                             const Pose& body_offset = Pose::Identity()) {
-  const InterpolationResult odom = InterpolateInBuffer(agent.odometry, t_ns);
-  const InterpolationResult truth = InterpolateInBuffer(agent.groundtruth, t_ns);
-  if (!odom.ok() || !truth.ok()) return std::nullopt;
-  return ProjectTo4Dof(truth.T * body_offset * odom.T.inverse());
-}
-
-/// What LIO's reported body is off by when the LiDAR's true mounting differs
-/// from the nominal one: T_b_l_true T_b_l_nominal^-1 (LIO tracks the LiDAR);
-/// identity without the true calibration.
-Pose LidarMountOffset(const Dataset& dataset) {
-  if (!dataset.groundtruth || !dataset.groundtruth->ground_true_lidar ||
-      !dataset.ground.calibration.lidar) {
-    return Pose::Identity();
-  }
-  return dataset.groundtruth->ground_true_lidar->T_body_lidar *
-         dataset.ground.calibration.lidar->T_body_lidar.inverse();
-}
-
-/// The relation between the two odometry worlds when the estimate was made
-/// (UAV keyframe at t_air, air clock; UGV at t_ground): the true T_wa_wg with
-/// both agents' odometry drift applied. No estimator can do better than this
-/// from odometry-world data; the difference to groundtruth.yaml is drift.
-std::optional<Pose> ObservableTruth(const Dataset& dataset, const AgentData& air, int64_t t_air,
-                                    int64_t t_ground, const Pose& T_wa_wg) {
-  const std::optional<Pose> T_wa_oa = OdometryWorldInTrueWorld(air, t_air);
-  const std::optional<Pose> T_wg_og =
-      OdometryWorldInTrueWorld(dataset.ground, t_ground, LidarMountOffset(dataset));
-  if (!T_wa_oa || !T_wg_og) return std::nullopt;
-  return ProjectTo4Dof(T_wa_oa->inverse() * T_wa_wg * *T_wg_og);
-}
 
 int64_t SecondsToNs(double s) { return static_cast<int64_t>(std::llround(s * 1e9)); }
 

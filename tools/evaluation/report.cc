@@ -22,14 +22,6 @@ SampleStats ComputeStats(std::vector<double> values) {
   return s;
 }
 
-PoseError FourDofError(const Pose& estimate, const Pose& truth) {
-  PoseError e;
-  e.translation_m = (estimate.translation() - truth.translation()).norm();
-  e.yaw_deg = std::abs(WrapAngle(ProjectedYaw(estimate.linear()) - ProjectedYaw(truth.linear()))) *
-              180.0 / M_PI;
-  return e;
-}
-
 Bandwidth ComputeBandwidth(const std::vector<std::pair<int64_t, int64_t>>& packets) {
   Bandwidth b;
   if (packets.empty()) return b;

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "common/dataset/ground_truth.h"
 #include "common/geometry/pose.h"
 
 namespace ag {
@@ -22,14 +23,6 @@ struct SampleStats {
   size_t count = 0;
 };
 SampleStats ComputeStats(std::vector<double> values);
-
-/// Translation (m) and yaw (deg) error of an estimated T_wa_wg, as the
-/// paper and the report spec measure them.
-struct PoseError {
-  double translation_m = 0;
-  double yaw_deg = 0;
-};
-PoseError FourDofError(const Pose& estimate, const Pose& truth);
 
 /// Per air agent, what the run recorded.
 struct AgentRecord {
