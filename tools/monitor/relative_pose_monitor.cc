@@ -2,7 +2,10 @@
 // server's relative poses and shows, per air agent, the current T_wa_wg, its
 // status and uncertainty, the link bandwidth the packets use and the
 // end-to-end latency (keyframe packet received -> relative pose received for
-// that keyframe). With --dataset, also the ground truth and the errors.
+// that keyframe). With --dataset, also the ground truth and the errors: against
+// groundtruth.yaml, and "drift-free" against the relation of the two odometry
+// worlds when the estimate was made (what an estimator can observe; the
+// difference is the odometries' drift), as tools/evaluate reports them.
 //
 //   relative_pose_monitor --dataset /tmp/covisible --duration 90 --require-fix
 //
@@ -25,6 +28,7 @@
 #include <vector>
 
 #include "common/dataset/dataset.h"
+#include "common/dataset/ground_truth.h"
 #include "common/geometry/pose.h"
 #include "common/wire/channels.h"
 #include "common/wire/link_bytes.h"
@@ -61,17 +65,6 @@ struct AgentView {
   std::vector<double> latency_s;
   int64_t bad = 0;
 };
-
-struct Error {
-  double translation_m = 0;
-  double yaw_deg = 0;
-};
-Error FourDofError(const ag::Pose& estimate, const ag::Pose& truth) {
-  return {(estimate.translation() - truth.translation()).norm(),
-          std::abs(ag::WrapAngle(ag::ProjectedYaw(estimate.linear()) -
-                                 ag::ProjectedYaw(truth.linear()))) *
-              kRadToDeg};
-}
 
 /// Mean over [first, last + 1 s) and the largest sum over any 1 s window, Mbit/s.
 std::pair<double, double> Bandwidth(
@@ -144,10 +137,14 @@ class Monitor {
       view.last_fix = e;
       if (latency) view.latency_s.push_back(*latency);
     }
-    const std::optional<ag::Pose> truth = Truth(agent);
-    std::optional<Error> err;
-    if (truth && e.status != aglcm::relative_pose_t::INITIALIZING) {
-      err = FourDofError(e.T_wa_wg, *truth);
+    std::optional<ag::PoseError> err, drift_free;
+    if (e.status != aglcm::relative_pose_t::INITIALIZING) {
+      if (const std::optional<ag::Pose> truth = Truth(agent)) {
+        err = ag::FourDofError(e.T_wa_wg, *truth);
+      }
+      if (const std::optional<ag::Pose> observable = DriftFreeTruth(agent, e)) {
+        drift_free = ag::FourDofError(e.T_wa_wg, *observable);
+      }
     }
     if (!quiet_) {
       std::printf("%s %-12s seq %lld  x %8.3f y %8.3f z %7.3f yaw %8.3f deg  sd %.3f m %.2f deg",
@@ -157,6 +154,10 @@ class Monitor {
                   std::sqrt(std::max(0.0, e.covariance.trace() - e.covariance(3, 3))),
                   std::sqrt(std::max(0.0, e.covariance(3, 3))) * kRadToDeg);
       if (err) std::printf("  error %.3f m %.2f deg", err->translation_m, err->yaw_deg);
+      if (drift_free) {
+        std::printf(" (drift-free %.3f m %.2f deg)", drift_free->translation_m,
+                    drift_free->yaw_deg);
+      }
       if (latency) std::printf("  latency %.2f s", *latency);
       std::printf("  inliers %d%s%s\n", e.num_inliers, e.status_reason.empty() ? "" : "  ",
                   e.status_reason.c_str());
@@ -173,6 +174,10 @@ class Monitor {
       if (latency) *jsonl_ << ",\"latency_s\":" << *latency;
       if (err) {
         *jsonl_ << ",\"error_m\":" << err->translation_m << ",\"error_deg\":" << err->yaw_deg;
+      }
+      if (drift_free) {
+        *jsonl_ << ",\"drift_free_error_m\":" << drift_free->translation_m
+                << ",\"drift_free_error_deg\":" << drift_free->yaw_deg;
       }
       *jsonl_ << "}\n";
       jsonl_->flush();
@@ -212,11 +217,20 @@ class Monitor {
                   ag::ProjectedYaw(T.linear()) * kRadToDeg, static_cast<long long>(view->fixes),
                   f.num_inliers);
       if (const std::optional<ag::Pose> truth = Truth(name)) {
-        const Error e = FourDofError(T, *truth);
+        const ag::PoseError e = ag::FourDofError(T, *truth);
         std::printf("  truth:     x %.3f  y %.3f  z %.3f m  yaw %.3f deg\n",
                     truth->translation().x(), truth->translation().y(), truth->translation().z(),
                     ag::ProjectedYaw(truth->linear()) * kRadToDeg);
-        std::printf("  error:     %.3f m, %.3f deg\n", e.translation_m, e.yaw_deg);
+        std::printf("  error:     %.3f m, %.3f deg (against groundtruth.yaml)\n", e.translation_m,
+                    e.yaw_deg);
+        if (const std::optional<ag::Pose> observable = DriftFreeTruth(name, f)) {
+          const ag::PoseError d = ag::FourDofError(T, *observable);
+          const ag::PoseError drift = ag::FourDofError(*observable, *truth);
+          std::printf(
+              "  drift-free: %.3f m, %.3f deg (against the odometry worlds' relation then, which "
+              "the odometries' drift has moved %.3f m, %.3f deg from groundtruth.yaml)\n",
+              d.translation_m, d.yaw_deg, drift.translation_m, drift.yaw_deg);
+        }
       }
       std::printf(
           "  latency:   %.2f s median over %zu estimates (keyframe packet received -> the first "
@@ -242,6 +256,18 @@ class Monitor {
     const auto it = dataset_->groundtruth->T_wa_wg.find(agent);
     if (it == dataset_->groundtruth->T_wa_wg.end()) return std::nullopt;
     return it->second;
+  }
+  /// The relation of the two odometry worlds when the estimate was made (the
+  /// newest UAV keyframe it used, air clock; the estimate's time, ground
+  /// clock): groundtruth.yaml with both odometries' drift applied. Needs
+  /// groundtruth.tum of both agents.
+  std::optional<ag::Pose> DriftFreeTruth(const std::string& agent,
+                                         const ag::RelativePoseEstimate& e) const {
+    const std::optional<ag::Pose> truth = Truth(agent);
+    if (!truth) return std::nullopt;
+    const auto air = dataset_->air.find(agent);
+    if (air == dataset_->air.end()) return std::nullopt;
+    return ag::ObservableTruth(*dataset_, air->second, e.air_t_ns, e.t_ns, *truth);
   }
 
   const std::optional<ag::Dataset>& dataset_;

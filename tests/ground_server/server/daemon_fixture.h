@@ -9,7 +9,6 @@
 #include <sys/file.h>
 #include <unistd.h>
 
-#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -131,17 +130,6 @@ inline int64_t Field(const std::string& line, const std::string& label) {
   std::smatch m;
   if (!std::regex_search(line, m, std::regex(label + " (-?[0-9]+)"))) return -1;
   return std::stoll(m[1]);
-}
-
-/// Translation (m) and yaw (deg) error of an estimate against the truth.
-struct PoseError {
-  double translation_m = 0;
-  double yaw_deg = 0;
-};
-inline PoseError ErrorOf(const Pose& estimate, const Pose& truth) {
-  double yaw = ProjectedYaw(estimate.linear()) - ProjectedYaw(truth.linear());
-  yaw = std::atan2(std::sin(yaw), std::cos(yaw));
-  return {(estimate.translation() - truth.translation()).norm(), std::abs(yaw) * 180.0 / M_PI};
 }
 
 /// Bash functions the daemon test scripts share: bounded waits, CPU time of

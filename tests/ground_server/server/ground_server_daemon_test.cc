@@ -8,7 +8,9 @@
 //    out on AG_RELATIVE_POSE_uav1, decode, count up, and reach TRACKING with
 //    T_wa_wg within 0.5 m / 1.5 deg (median 0.35 m / 0.6 deg) of
 //    groundtruth.yaml and within 3 sigma of its covariance; both daemons end
-//    with status 0 on SIGTERM.
+//    with status 0 on SIGTERM. relative_pose_monitor, watching beside them,
+//    must see every relative pose, report the same errors against
+//    groundtruth.yaml and drift-free errors within the same bounds.
 //  TwoAirAgentsAreEstimatedSideBySide: as ThreeProcesses, plus a second
 //    air_agent (uav2) replaying uav1's camera from the dataset: both agents
 //    get their own relative poses, within the same bounds, and neither's
@@ -41,12 +43,14 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <regex>
 #include <set>
 #include <sstream>
 
 #include "common/dataset/dataset.h"
+#include "common/dataset/ground_truth.h"
 #include "common/wire/channels.h"
 #include "common/wire/keyframe_codec.h"
 #include "common/wire/link_bytes.h"
@@ -140,14 +144,15 @@ void WriteConfigs(const test::TempDir& tmp, const std::string& extra_ground = ""
 
 std::string Paths(const std::string& dataset) {
   return std::string("GS=") + AG_GROUND_SERVER + "\nAIR=" + AG_AIR_AGENT +
-         "\nPLAY=" + AG_PLAY_DATASET + "\nCAP=" + AG_LCM_CAPTURE + "\nD=" + dataset + "\n";
+         "\nPLAY=" + AG_PLAY_DATASET + "\nCAP=" + AG_LCM_CAPTURE + "\nMON=" + AG_MONITOR +
+         "\nD=" + dataset + "\n";
 }
 
 /// The tracking fixes among `poses` and how far the best-placed last one is
 /// from the truth; prints a summary.
 struct FixSummary {
   int tracking = 0;
-  std::optional<test::PoseError> last_error;
+  std::optional<PoseError> last_error;
   std::vector<double> translation_m;  ///< of every TRACKING estimate
   std::vector<double> yaw_deg;
   std::vector<double> sigma_m;  ///< sqrt of the trace of the position covariance
@@ -180,7 +185,7 @@ FixSummary Fixes(const std::vector<ReceivedPose>& poses, const Pose& truth) {
   for (const ReceivedPose& p : poses) {
     if (p.estimate.status != aglcm::relative_pose_t::TRACKING) continue;
     ++s.tracking;
-    s.last_error = test::ErrorOf(p.estimate.T_wa_wg, truth);
+    s.last_error = FourDofError(p.estimate.T_wa_wg, truth);
     s.translation_m.push_back(s.last_error->translation_m);
     s.yaw_deg.push_back(s.last_error->yaw_deg);
     s.sigma_m.push_back(std::sqrt(p.estimate.covariance.topLeftCorner<3, 3>().trace()));
@@ -239,7 +244,10 @@ TEST(GroundServerDaemon, ThreeProcessesTrackTheSmallScenario) {
   // this 2-core VM ran ~1.7x slower than usual, the fixes' yaw errors were
   // 0.51-1.36 deg (median 0.73); at half speed, on the same day, 0.17-0.29
   // deg. The bounds below are for a machine that keeps up.
+  // relative_pose_monitor watches too, as a field user (and tools/demo.sh) would.
   const std::string script = Paths(dataset) + StartLive("uav1", "air.log") + R"SH(
+$MON --dataset $D --lcm-url "$URL" --quiet --require-fix --jsonl monitor.jsonl > monitor.out 2> monitor.log &
+M=$!
 t0=$(now)
 $PLAY --dataset $D --speed 0.5 --lcm-url "$URL" > player.out 2> player.log
 echo player_status=$?
@@ -249,6 +257,7 @@ echo ground_cpu_s=$(cpu_s $G)
 echo air_cpu_s=$(cpu_s $A1)
 stop $G ground
 stop $A1 air
+stop $M monitor
 kill $C 2>/dev/null; wait $C
 exit 0
 )SH";
@@ -318,6 +327,36 @@ exit 0
   EXPECT_NE(agent_line.find("uav1: tracking"), std::string::npos) << agent_line;
   EXPECT_NE(agent_line.find("sigma"), std::string::npos) << agent_line;
   EXPECT_FALSE(latencies.empty());
+
+  // The monitor saw every relative pose and reports the same errors against
+  // groundtruth.yaml, plus drift-free ones (against the odometry worlds'
+  // relation when the estimate was made) within the same bound.
+  const std::string monitor_out = test::ReadFileText(tmp / "monitor.out");
+  EXPECT_EQ(test::ScriptValue(log, "monitor_status"), 0)
+      << "monitor --require-fix saw no fix\n"
+      << monitor_out << test::ReadFileText(tmp / "monitor.log");
+  EXPECT_NE(monitor_out.find("  error:"), std::string::npos) << monitor_out;
+  EXPECT_NE(monitor_out.find("  drift-free:"), std::string::npos) << monitor_out;
+  std::map<int64_t, const RelativePoseEstimate*> by_seq;
+  for (const ReceivedPose& p : poses) by_seq[p.estimate.seq] = &p.estimate;
+  std::ifstream jsonl(tmp / "monitor.jsonl");
+  int lines = 0, drift_free = 0;
+  for (std::string line; std::getline(jsonl, line); ++lines) {
+    const nlohmann::json j = nlohmann::json::parse(line);
+    const auto it = by_seq.find(j.at("seq").get<int64_t>());
+    ASSERT_NE(it, by_seq.end()) << "the monitor reports a pose the capture lacks: " << line;
+    if (it->second->status != aglcm::relative_pose_t::TRACKING) continue;
+    const PoseError e = FourDofError(it->second->T_wa_wg, truth);
+    EXPECT_NEAR(j.at("error_m").get<double>(), e.translation_m, 1e-4) << line;
+    EXPECT_NEAR(j.at("error_deg").get<double>(), e.yaw_deg, 1e-3) << line;
+    if (!j.contains("drift_free_error_m")) continue;
+    ++drift_free;
+    EXPECT_LT(j.at("drift_free_error_m").get<double>(), 0.5) << line;
+    EXPECT_LT(j.at("drift_free_error_deg").get<double>(), 1.5) << line;
+  }
+  std::printf("monitor: %d relative poses, %d with a drift-free error\n", lines, drift_free);
+  EXPECT_EQ(lines, static_cast<int>(poses.size()));
+  EXPECT_GT(drift_free, 0) << "no drift-free error in " << lines << " lines";
 }
 
 TEST(GroundServerDaemon, TwoAirAgentsAreEstimatedSideBySide) {
