@@ -63,6 +63,9 @@ struct AgentView {
   std::optional<ag::RelativePoseEstimate> last;
   std::optional<ag::RelativePoseEstimate> last_fix;
   std::vector<double> latency_s;
+  // Errors of the TRACKING messages (with --dataset): against groundtruth.yaml,
+  // and drift-free where the odometries' ground truth covers the estimate.
+  std::vector<double> error_m, error_deg, drift_free_m, drift_free_deg;
   int64_t bad = 0;
 };
 
@@ -144,6 +147,16 @@ class Monitor {
       }
       if (const std::optional<ag::Pose> observable = DriftFreeTruth(agent, e)) {
         drift_free = ag::FourDofError(e.T_wa_wg, *observable);
+      }
+    }
+    if (e.status == aglcm::relative_pose_t::TRACKING) {
+      if (err) {
+        view.error_m.push_back(err->translation_m);
+        view.error_deg.push_back(err->yaw_deg);
+      }
+      if (drift_free) {
+        view.drift_free_m.push_back(drift_free->translation_m);
+        view.drift_free_deg.push_back(drift_free->yaw_deg);
       }
     }
     if (!quiet_) {
@@ -231,6 +244,13 @@ class Monitor {
               "the odometries' drift has moved %.3f m, %.3f deg from groundtruth.yaml)\n",
               d.translation_m, d.yaw_deg, drift.translation_m, drift.yaw_deg);
         }
+        std::printf("  median:    %.3f m, %.3f deg over %zu fixes", Median(view->error_m),
+                    Median(view->error_deg), view->error_m.size());
+        if (!view->drift_free_m.empty()) {
+          std::printf("; drift-free %.3f m, %.3f deg over %zu", Median(view->drift_free_m),
+                      Median(view->drift_free_deg), view->drift_free_m.size());
+        }
+        std::printf("\n");
       }
       std::printf(
           "  latency:   %.2f s median over %zu estimates (keyframe packet received -> the first "

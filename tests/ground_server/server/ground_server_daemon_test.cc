@@ -10,7 +10,8 @@
 //    groundtruth.yaml and within 3 sigma of its covariance; both daemons end
 //    with status 0 on SIGTERM. relative_pose_monitor, watching beside them,
 //    must see every relative pose, report the same errors against
-//    groundtruth.yaml and drift-free errors within the same bounds.
+//    groundtruth.yaml and drift-free errors within the same bounds, and
+//    summarise them with their medians.
 //  TwoAirAgentsAreEstimatedSideBySide: as ThreeProcesses, plus a second
 //    air_agent (uav2) replaying uav1's camera from the dataset: both agents
 //    get their own relative poses, within the same bounds, and neither's
@@ -341,6 +342,7 @@ exit 0
   for (const ReceivedPose& p : poses) by_seq[p.estimate.seq] = &p.estimate;
   std::ifstream jsonl(tmp / "monitor.jsonl");
   int lines = 0, drift_free = 0;
+  std::vector<double> tracking_m, drift_free_m;
   for (std::string line; std::getline(jsonl, line); ++lines) {
     const nlohmann::json j = nlohmann::json::parse(line);
     const auto it = by_seq.find(j.at("seq").get<int64_t>());
@@ -349,14 +351,34 @@ exit 0
     const PoseError e = FourDofError(it->second->T_wa_wg, truth);
     EXPECT_NEAR(j.at("error_m").get<double>(), e.translation_m, 1e-4) << line;
     EXPECT_NEAR(j.at("error_deg").get<double>(), e.yaw_deg, 1e-3) << line;
+    tracking_m.push_back(j.at("error_m").get<double>());
     if (!j.contains("drift_free_error_m")) continue;
     ++drift_free;
+    drift_free_m.push_back(j.at("drift_free_error_m").get<double>());
     EXPECT_LT(j.at("drift_free_error_m").get<double>(), 0.5) << line;
     EXPECT_LT(j.at("drift_free_error_deg").get<double>(), 1.5) << line;
   }
   std::printf("monitor: %d relative poses, %d with a drift-free error\n", lines, drift_free);
   EXPECT_EQ(lines, static_cast<int>(poses.size()));
   EXPECT_GT(drift_free, 0) << "no drift-free error in " << lines << " lines";
+  // The summary's medians are those of the TRACKING lines.
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  };
+  std::smatch m;
+  const std::string median_line = test::LastLineWith(monitor_out, "  median:");
+  ASSERT_TRUE(
+      std::regex_search(median_line, m,
+                        std::regex(R"(median: +([0-9.]+) m, [0-9.]+ deg over ([0-9]+) fixes; )"
+                                   R"(drift-free ([0-9.]+) m, [0-9.]+ deg over ([0-9]+))")))
+      << monitor_out;
+  ASSERT_FALSE(tracking_m.empty());
+  EXPECT_NEAR(std::stod(m[1]), median(tracking_m), 6e-4) << median_line;
+  EXPECT_EQ(std::stoul(m[2]), tracking_m.size()) << median_line;
+  EXPECT_NEAR(std::stod(m[3]), median(drift_free_m), 6e-4) << median_line;
+  EXPECT_EQ(std::stoul(m[4]), drift_free_m.size()) << median_line;
 }
 
 TEST(GroundServerDaemon, TwoAirAgentsAreEstimatedSideBySide) {
