@@ -4,7 +4,8 @@
 # mode) and the dataset player over LCM inside a private network namespace
 # (loopback only: nothing leaves this machine) and prints, per air agent, the
 # estimated T_wa_wg, the ground truth, the errors (against groundtruth.yaml and
-# drift-free), the link bandwidth and the end-to-end latency. Exits non-zero when an air agent got no fix.
+# drift-free), the link bandwidth and the end-to-end latency. Exits non-zero
+# when an air agent got no fix.
 #
 # Environment: AG_DEMO_DIR (work folder, default /tmp/ag_demo), AG_DEMO_SEED
 # (default 1), AG_DEMO_DURATION (seconds of the scenario, default: all 60),

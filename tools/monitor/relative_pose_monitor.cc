@@ -64,7 +64,7 @@ struct AgentView {
   std::optional<ag::RelativePoseEstimate> last_fix;
   std::vector<double> latency_s;
   // Errors of the TRACKING messages (with --dataset): against groundtruth.yaml,
-  // and drift-free where the odometries' ground truth covers the estimate.
+  // and drift-free for those that carry a new estimate (see DriftFreeTruth).
   std::vector<double> error_m, error_deg, drift_free_m, drift_free_deg;
   int64_t bad = 0;
 };
@@ -280,9 +280,11 @@ class Monitor {
   /// The relation of the two odometry worlds when the estimate was made (the
   /// newest UAV keyframe it used, air clock; the estimate's time, ground
   /// clock): groundtruth.yaml with both odometries' drift applied. Needs
-  /// groundtruth.tum of both agents.
+  /// groundtruth.tum of both agents, and a message with a new estimate:
+  /// ground_server leaves air_t_ns 0 where it repeats the current fix.
   std::optional<ag::Pose> DriftFreeTruth(const std::string& agent,
                                          const ag::RelativePoseEstimate& e) const {
+    if (e.air_t_ns == 0) return std::nullopt;
     const std::optional<ag::Pose> truth = Truth(agent);
     if (!truth) return std::nullopt;
     const auto air = dataset_->air.find(agent);
