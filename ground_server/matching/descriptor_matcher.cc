@@ -68,8 +68,20 @@ Nearest SearchOpenCv(const cv::Mat& base, const cv::Mat& query, int k) {
 // nearest and second nearest per row of `a`, nearest per row of `b`. Half
 // the work of two searches, and OpenCV's GEMM is vectorised at run time.
 void SearchGemm(const cv::Mat& a, const cv::Mat& b, Nearest* ab, Nearest* ba) {
+  // OpenCV hands a product to the system BLAS only when its first factor
+  // has at least 100 rows (HAL_GEMM_SMALL_MATRIX_THRESH in its
+  // core/src/hal_internal.cpp) and computes smaller ones itself, 3-4x
+  // slower per row; stage 1 matches about a hundred tracks of a keyframe at
+  // a time. So a small `a` goes second and the product is transposed back.
+  constexpr int kBlasMinRows = 100;
   cv::Mat dot;
-  cv::gemm(a, b, 1.0, cv::noArray(), 0.0, dot, cv::GEMM_2_T);
+  if (a.rows < kBlasMinRows && b.rows >= kBlasMinRows) {
+    cv::Mat dot_t;
+    cv::gemm(b, a, 1.0, cv::noArray(), 0.0, dot_t, cv::GEMM_2_T);
+    cv::transpose(dot_t, dot);
+  } else {
+    cv::gemm(a, b, 1.0, cv::noArray(), 0.0, dot, cv::GEMM_2_T);
+  }
   std::vector<float> norm_b(b.rows);
   for (int j = 0; j < b.rows; ++j) norm_b[j] = static_cast<float>(b.row(j).dot(b.row(j)));
   ab->index.assign(a.rows, -1);
