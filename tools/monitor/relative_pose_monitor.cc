@@ -62,6 +62,9 @@ struct AgentView {
   int64_t fixes = 0;  // messages with status TRACKING
   std::optional<ag::RelativePoseEstimate> last;
   std::optional<ag::RelativePoseEstimate> last_fix;
+  // The newest TRACKING message with a new estimate (air_t_ns set): a
+  // repeat of the current fix has no drift-free error of its own.
+  std::optional<ag::RelativePoseEstimate> last_estimated_fix;
   std::vector<double> latency_s;
   // Errors of the TRACKING messages (with --dataset): against groundtruth.yaml,
   // and drift-free for those that carry a new estimate (see DriftFreeTruth).
@@ -138,6 +141,7 @@ class Monitor {
     if (e.status == aglcm::relative_pose_t::TRACKING) {
       ++view.fixes;
       view.last_fix = e;
+      if (e.air_t_ns != 0) view.last_estimated_fix = e;
       if (latency) view.latency_s.push_back(*latency);
     }
     std::optional<ag::PoseError> err, drift_free;
@@ -236,12 +240,16 @@ class Monitor {
                     ag::ProjectedYaw(truth->linear()) * kRadToDeg);
         std::printf("  error:     %.3f m, %.3f deg (against groundtruth.yaml)\n", e.translation_m,
                     e.yaw_deg);
-        if (const std::optional<ag::Pose> observable = DriftFreeTruth(name, f)) {
-          const ag::PoseError d = ag::FourDofError(T, *observable);
+        const std::optional<ag::Pose> observable =
+            view->last_estimated_fix ? DriftFreeTruth(name, *view->last_estimated_fix)
+                                     : std::nullopt;
+        if (observable) {
+          const ag::PoseError d = ag::FourDofError(view->last_estimated_fix->T_wa_wg, *observable);
           const ag::PoseError drift = ag::FourDofError(*observable, *truth);
           std::printf(
-              "  drift-free: %.3f m, %.3f deg (against the odometry worlds' relation then, which "
-              "the odometries' drift has moved %.3f m, %.3f deg from groundtruth.yaml)\n",
+              "  drift-free: %.3f m, %.3f deg (the newest fix with a new estimate, against the "
+              "odometry worlds' relation then, which the odometries' drift has moved %.3f m, "
+              "%.3f deg from groundtruth.yaml)\n",
               d.translation_m, d.yaw_deg, drift.translation_m, drift.yaw_deg);
         }
         std::printf("  median:    %.3f m, %.3f deg over %zu fixes", Median(view->error_m),
