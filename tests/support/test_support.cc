@@ -1,5 +1,6 @@
 #include "tests/support/test_support.h"
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <random>
@@ -48,6 +49,11 @@ TempDir::TempDir() {
 }
 
 TempDir::~TempDir() {
+  const char* keep = std::getenv("AG_KEEP_TEST_DIRS");
+  if (keep != nullptr && *keep != '\0' && std::string(keep) != "0") {
+    std::fprintf(stderr, "AG_KEEP_TEST_DIRS: kept %s\n", path_.c_str());
+    return;
+  }
   std::error_code ec;
   fs::remove_all(path_, ec);
 }
