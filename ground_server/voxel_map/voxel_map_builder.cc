@@ -64,7 +64,7 @@ void VoxelMapBuilder::Run() {
     Process(scan);
     lock.lock();
     busy_ = false;
-    if (queue_.empty()) idle_.notify_all();
+    idle_.notify_all();
   }
   stats_.scans_discarded += queue_.size();
   queue_.clear();
@@ -75,6 +75,11 @@ void VoxelMapBuilder::Run() {
 bool VoxelMapBuilder::WaitUntilIdle(std::chrono::nanoseconds timeout) {
   std::unique_lock<std::mutex> lock(mutex_);
   return idle_.wait_for(lock, timeout, [this] { return queue_.empty() && !busy_; });
+}
+
+bool VoxelMapBuilder::WaitUntilSettled(uint64_t pushed, std::chrono::nanoseconds timeout) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  return idle_.wait_for(lock, timeout, [&] { return stats_.settled() >= pushed || stopping_; });
 }
 
 void VoxelMapBuilder::Stop() {

@@ -33,7 +33,12 @@ struct VoxelMapBuilderStats {
   uint64_t scans_dropped = 0;    ///< pushed out of the full queue (oldest first)
   uint64_t scans_discarded = 0;  ///< still queued when Stop() was called
   uint64_t scans_rejected = 0;   ///< non-finite pose
-  VoxelInsertStats insert;       ///< summed over inserted scans
+  /// Pushed scans that are no longer waiting: inserted, dropped, rejected
+  /// or discarded.
+  uint64_t settled() const {
+    return scans_inserted + scans_dropped + scans_rejected + scans_discarded;
+  }
+  VoxelInsertStats insert;  ///< summed over inserted scans
 };
 
 /// Owns an insertion thread that takes scans from a bounded queue,
@@ -76,6 +81,13 @@ class VoxelMapBuilder {
   /// timeout passes. Returns true when idle.
   bool WaitUntilIdle(std::chrono::nanoseconds timeout);
 
+  /// Blocks until the first `pushed` scans ever pushed are settled (inserted,
+  /// dropped, rejected or discarded), or the timeout passes; returns true
+  /// when they are (or the builder was stopped). With `pushed` =
+  /// stats().scans_pushed taken when an image was queued, the map then holds
+  /// every scan that came before the image and was not dropped.
+  bool WaitUntilSettled(uint64_t pushed, std::chrono::nanoseconds timeout);
+
   /// Finishes the current scan, discards queued ones, joins. Idempotent.
   void Stop();
 
@@ -89,7 +101,7 @@ class VoxelMapBuilder {
   Options options_;
   mutable std::mutex mutex_;
   std::condition_variable wake_;  ///< a scan arrived or stop requested
-  std::condition_variable idle_;  ///< the queue ran empty
+  std::condition_variable idle_;  ///< a scan was settled (the queue may be empty)
   std::deque<PosedScan> queue_;
   bool busy_ = false;
   bool stopping_ = false;

@@ -216,6 +216,36 @@ TEST(VoxelMapBuilderTest, ThreadConsumesTheQueueAndDropsTheOldestWhenFull) {
   EXPECT_FALSE(builder.Push(MakeScan(20, 5)));
 }
 
+TEST(VoxelMapBuilderTest, WaitUntilSettledReturnsOnceTheScansPushedSoFarAreInTheMap) {
+  VoxelMap map;
+  VoxelMapBuilder::Options options;
+  options.queue_capacity = 2;
+  VoxelMapBuilder builder(&map, options);
+  std::vector<PosedScan> scans;
+  scans.reserve(8);
+  for (int k = 0; k < 8; ++k) scans.push_back(MakeScan(k, 20000));
+  // Not started: of 5 pushed, the 3 oldest were dropped (settled), 2 wait.
+  for (int k = 0; k < 5; ++k) ASSERT_TRUE(builder.Push(scans[k]));
+  EXPECT_TRUE(builder.WaitUntilSettled(3, std::chrono::milliseconds(0)));
+  EXPECT_FALSE(builder.WaitUntilSettled(4, std::chrono::milliseconds(20)));
+
+  builder.Start();
+  for (int k = 5; k < 8; ++k) ASSERT_TRUE(builder.Push(scans[k]));
+  const uint64_t pushed = builder.stats().scans_pushed;
+  ASSERT_EQ(pushed, 8u);
+  ASSERT_TRUE(builder.WaitUntilSettled(pushed, std::chrono::seconds(30)));
+  // Every scan pushed before the mark is in the map or was dropped.
+  const VoxelMapBuilderStats stats = builder.stats();
+  EXPECT_EQ(stats.settled(), 8u);
+  EXPECT_EQ(stats.scans_inserted + stats.scans_dropped, 8u);
+  EXPECT_TRUE(Contains(map, scans[7], scans[7].points_l[21]));
+  EXPECT_FALSE(builder.WaitUntilSettled(pushed + 1, std::chrono::milliseconds(20)));
+
+  // A stopped builder never settles more: waiting returns at once.
+  builder.Stop();
+  EXPECT_TRUE(builder.WaitUntilSettled(pushed + 1, std::chrono::seconds(30)));
+}
+
 TEST(VoxelMapBuilderTest, StopIsCleanWhileBusyAndAccountsForEveryScan) {
   VoxelMap map;
   VoxelMapBuilder::Options options;
