@@ -1,5 +1,6 @@
 #include "ground_server/server/ground_server_app.h"
 
+#include <spdlog/fmt/ranges.h>
 #include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
 
@@ -243,6 +244,7 @@ struct GroundServerApp::Impl {
   struct FrontendItem {
     uint64_t epoch = 0;
     aglcm::image_t image;
+    uint64_t scans_pushed = 0;  ///< to the map builder before this image was queued
   };
   std::mutex frontend_mutex;
   std::condition_variable frontend_cv;
@@ -345,6 +347,29 @@ struct GroundServerApp::Impl {
 
 // ---------------------------------------------------------------- agents
 
+/// At debug level, one line per estimate: what it paired and what came out,
+/// to see how timing shapes a live run (which UGV window met which UAV
+/// keyframes) next to the offline evaluator's.
+void LogEstimate(const AgentState& agent, const UgvWindow& window, const EstimateResult& r) {
+  if (!spdlog::should_log(spdlog::level::debug)) return;
+  const double t0 = static_cast<double>(window.front()->t_ns) * 1e-9;
+  const double t1 = static_cast<double>(window.back()->t_ns) * 1e-9;
+  if (!r.success) {
+    spdlog::debug("{}: estimate over UGV keyframes {:.2f}-{:.2f} s ({}) failed after {:.0f} ms: {}",
+                  agent.name, t0, t1, window.size(), r.timing.total_ms, r.reason);
+    return;
+  }
+  const Pose& T = r.T_wa_wg_single;
+  spdlog::debug(
+      "{}: estimate over UGV keyframes {:.2f}-{:.2f} s ({}) and UAV keyframes [{}] "
+      "(newest {:.2f} s): {} pairs, {} inliers, rms {:.2f} px; alone ({:.3f}, {:.3f}, {:.3f}) m "
+      "yaw {:.3f} deg; {:.0f} ms; {}",
+      agent.name, t0, t1, window.size(), fmt::join(r.air_seqs, " "),
+      static_cast<double>(r.newest_air_t_ns) * 1e-9, r.pairs, r.inliers, r.rms_reprojection_px,
+      T.translation().x(), T.translation().y(), T.translation().z(), YawOf(T.linear()) * 180 / M_PI,
+      r.timing.total_ms, r.gate.publish ? "published" : r.gate.reason);
+}
+
 AgentState* GroundServerApp::Impl::Agent(const std::string& name) {
   std::lock_guard<std::mutex> lock(agents_mutex);
   auto it = agents.find(name);
@@ -431,6 +456,7 @@ void GroundServerApp::Impl::AgentLoop(AgentState* agent) {
 
     const int64_t t_ns = snapshot.back()->t_ns;
     const EstimateResult r = agent->estimator->Estimate(t_ns, snapshot, source);
+    LogEstimate(*agent, snapshot, r);
     const FixGate& gate = agent->estimator->gate();
     RelativePoseEstimate out;
     out.agent = agent->name;
@@ -475,6 +501,7 @@ void GroundServerApp::Impl::AgentLoop(AgentState* agent) {
 // ---------------------------------------------------------------- UGV
 
 void GroundServerApp::Impl::FrontendLoop() {
+  constexpr auto kMapWait = std::chrono::seconds(1);
   while (true) {
     FrontendItem item;
     {
@@ -489,6 +516,19 @@ void GroundServerApp::Impl::FrontendLoop() {
     if (!DecodeImage(item.image, &image, &error)) {
       Bad(kUgvImageChannel, error);
       continue;
+    }
+    // The keypoints' depth comes from the map: let the map thread insert
+    // every scan that came before the image first, as the offline evaluator
+    // does, so that a busy CPU does not change what the keyframe sees.
+    if (builder.stats().settled() < item.scans_pushed) {
+      Count(&GroundServerStats::keyframes_waited_for_map);
+      if (!builder.WaitUntilSettled(item.scans_pushed, kMapWait)) {
+        Count(&GroundServerStats::keyframes_map_behind);
+        Warn("keyframes made before the map caught up",
+             fmt::format("the LiDAR map thread is {} s behind the UGV images; giving this "
+                         "keyframe depth from the map as it is",
+                         std::chrono::duration<double>(kMapWait).count()));
+      }
     }
     const std::shared_ptr<OdometryBuffer> odo = Odometry();
     const UgvFrontend::Result r =
@@ -532,7 +572,7 @@ void GroundServerApp::Impl::DrainPending() {
     }
     {
       std::lock_guard<std::mutex> lock(frontend_mutex);
-      frontend_queue.push_back({ugv_epoch, std::move(image)});
+      frontend_queue.push_back({ugv_epoch, std::move(image), builder.stats().scans_pushed});
       while (static_cast<int>(frontend_queue.size()) > options.image_queue) {
         frontend_queue.pop_front();  // the frontend is behind: keep the newest
         Count(&GroundServerStats::keyframes_dropped);
@@ -1060,14 +1100,16 @@ void GroundServerApp::Impl::LogStatus() {
   const VoxelMapBuilderStats b = builder.stats();
   spdlog::info(
       "ugv: odometry {} (rejected {}, clock jumps {}) scans {} (dropped {}) images {} keyframes "
-      "{} (dropped {}) map {} voxels; uav packets {} (dropped {}, parts {}) keyframes stored {} "
+      "{} (dropped {}, waited for the map {}, made before it caught up {}) map {} voxels; uav "
+      "packets {} (dropped {}, parts {}) keyframes stored {} "
       "(rejected {}, unknown camera {}, lost on the link {}; parts lost {}, dropped {}); place "
       "db {}; bad messages {}, frame id mismatches {}",
       s.odometry, s.odometry_rejected, s.clock_jumps, s.scans,
       s.scans_dropped + static_cast<int64_t>(b.scans_dropped), s.images, s.keyframes,
-      s.keyframes_dropped, map.num_voxels(), s.air_packets, s.air_packets_dropped, s.air_parts,
-      s.air_keyframes, s.air_keyframes_rejected, s.air_keyframes_unknown_camera, s.air_seq_gaps,
-      s.air_parts_lost, s.air_parts_dropped, db.Size(), s.bad_messages, s.frame_id_mismatches);
+      s.keyframes_dropped, s.keyframes_waited_for_map, s.keyframes_map_behind, map.num_voxels(),
+      s.air_packets, s.air_packets_dropped, s.air_parts, s.air_keyframes, s.air_keyframes_rejected,
+      s.air_keyframes_unknown_camera, s.air_seq_gaps, s.air_parts_lost, s.air_parts_dropped,
+      db.Size(), s.bad_messages, s.frame_id_mismatches);
   std::lock_guard<std::mutex> lock(agents_mutex);
   for (auto& [name, agent] : agents) {
     std::lock_guard<std::mutex> agent_lock(agent->mutex);

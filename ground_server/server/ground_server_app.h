@@ -156,11 +156,15 @@ struct GroundServerStats {
   int64_t scans_dropped = 0;        ///< waiting queue full, or older than the odometry
   int64_t images = 0;     ///< UGV images received (header checks passed; decoding may still fail)
   int64_t keyframes = 0;  ///< UGV keyframes made
-  int64_t keyframes_dropped = 0;       ///< waiting or frontend queue full, or no odometry for them
-  int64_t air_packets = 0;             ///< UAV keyframe packets received (before decoding)
-  int64_t air_packets_dropped = 0;     ///< decode queue full (oldest dropped)
-  int64_t air_keyframes = 0;           ///< UAV keyframes stored
-  int64_t air_keyframes_rejected = 0;  ///< refused by the place database
+  int64_t keyframes_dropped = 0;  ///< waiting or frontend queue full, or no odometry for them
+  /// Keyframes whose depth had to wait for the map thread to insert the
+  /// scans before them, and those made without them after a 1 s wait.
+  int64_t keyframes_waited_for_map = 0;
+  int64_t keyframes_map_behind = 0;
+  int64_t air_packets = 0;                   ///< UAV keyframe packets received (before decoding)
+  int64_t air_packets_dropped = 0;           ///< decode queue full (oldest dropped)
+  int64_t air_keyframes = 0;                 ///< UAV keyframes stored
+  int64_t air_keyframes_rejected = 0;        ///< refused by the place database
   int64_t air_keyframes_unknown_camera = 0;  ///< stored before their camera_info arrived
   int64_t air_seq_gaps = 0;    ///< keyframes lost on the link (seq gaps, or no global descriptor)
   int64_t air_parts = 0;       ///< packets that were parts of split keyframes
