@@ -363,10 +363,13 @@ void LogEstimate(const AgentState& agent, const UgvWindow& window, const Estimat
   spdlog::debug(
       "{}: estimate over UGV keyframes {:.2f}-{:.2f} s ({}) and UAV keyframes [{}] "
       "(newest {:.2f} s): {} pairs, {} inliers, rms {:.2f} px; alone ({:.3f}, {:.3f}, {:.3f}) m "
-      "yaw {:.3f} deg; {:.0f} ms; {}",
+      "yaw {:.3f} deg; UGV camera corrected by {:.3f} deg; {:.0f} ms; {}",
       agent.name, t0, t1, window.size(), fmt::join(r.air_seqs, " "),
       static_cast<double>(r.newest_air_t_ns) * 1e-9, r.pairs, r.inliers, r.rms_reprojection_px,
       T.translation().x(), T.translation().y(), T.translation().z(), YawOf(T.linear()) * 180 / M_PI,
+      Eigen::AngleAxisd(r.ugv_T_wg_c_lio.linear().transpose() * r.ugv_T_wg_c_refined.linear())
+              .angle() *
+          180 / M_PI,
       r.timing.total_ms, r.gate.publish ? "published" : r.gate.reason);
 }
 
