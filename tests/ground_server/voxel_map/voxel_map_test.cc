@@ -161,6 +161,14 @@ PosedScan MakeScan(int k, int n) {
   return scan;
 }
 
+/// Scans 0..count-1 of `n` points each.
+std::vector<PosedScan> MakeScans(int count, int n) {
+  std::vector<PosedScan> scans;
+  scans.reserve(count);
+  for (int k = 0; k < count; ++k) scans.push_back(MakeScan(k, n));
+  return scans;
+}
+
 bool Contains(const VoxelMap& map, const PosedScan& scan, const Eigen::Vector3f& p_l) {
   const Eigen::Vector3d p_in_wg = scan.T_wg_lidar * p_l.cast<double>();
   const NearestResult r = map.Nearest(p_in_wg);
@@ -188,9 +196,7 @@ TEST(VoxelMapBuilderTest, ThreadConsumesTheQueueAndDropsTheOldestWhenFull) {
   VoxelMapBuilder::Options options;
   options.queue_capacity = 3;
   VoxelMapBuilder builder(&map, options);
-  std::vector<PosedScan> scans;
-  scans.reserve(10);
-  for (int k = 0; k < 10; ++k) scans.push_back(MakeScan(k, 50));
+  std::vector<PosedScan> scans = MakeScans(10, 50);
   // Not started yet: the queue fills and the oldest are dropped.
   for (const auto& scan : scans) ASSERT_TRUE(builder.Push(scan));
   EXPECT_EQ(builder.queue_size(), 3u);
@@ -221,9 +227,7 @@ TEST(VoxelMapBuilderTest, WaitUntilSettledReturnsOnceTheScansPushedSoFarAreInThe
   VoxelMapBuilder::Options options;
   options.queue_capacity = 2;
   VoxelMapBuilder builder(&map, options);
-  std::vector<PosedScan> scans;
-  scans.reserve(8);
-  for (int k = 0; k < 8; ++k) scans.push_back(MakeScan(k, 20000));
+  const std::vector<PosedScan> scans = MakeScans(8, 20000);
   // Not started: of 5 pushed, the 3 oldest were dropped (settled), 2 wait.
   for (int k = 0; k < 5; ++k) ASSERT_TRUE(builder.Push(scans[k]));
   EXPECT_TRUE(builder.WaitUntilSettled(3, std::chrono::milliseconds(0)));
