@@ -527,10 +527,11 @@ void GroundServerApp::Impl::FrontendLoop() {
       Count(&GroundServerStats::keyframes_waited_for_map);
       if (!builder.WaitUntilSettled(item.scans_pushed, kMapWait)) {
         Count(&GroundServerStats::keyframes_map_behind);
-        Warn("keyframes made before the map caught up",
-             fmt::format("the LiDAR map thread is {} s behind the UGV images; giving this "
-                         "keyframe depth from the map as it is",
-                         std::chrono::duration<double>(kMapWait).count()));
+        Warn(
+            "keyframes made before the map caught up",
+            fmt::format("the LiDAR map thread is more than {} s behind the UGV images; giving this "
+                        "keyframe depth from the map as it is",
+                        std::chrono::duration<double>(kMapWait).count()));
       }
     }
     const std::shared_ptr<OdometryBuffer> odo = Odometry();
