@@ -405,6 +405,17 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
           std::make_pair(1e3 * (dataset.groundtruth->ground_true_camera->time_offset_s -
                                 dataset.ground.calibration.camera.time_offset_s),
                          1e3 * s.estimator->camera_time_offset_s());
+      // What stage 1 made of the UGV camera's calibration, as the report's
+      // ugv_camera_* fields give it, with the centre's error per axis.
+      const Eigen::Vector3d centre_cm = 100 * (E.inverse() * C).translation();
+      spdlog::info(
+          "{}: UGV camera against the map after stage 1: rotation {:.3f} deg off (nominal "
+          "{:.3f}), centre ({:+.1f} {:+.1f} {:+.1f}) cm off (camera x right, y down, z ahead), "
+          "time offset {:+.1f} ms (true {:+.1f})",
+          s.name, report.agents[s.name].ugv_camera_rotation_error_deg->second,
+          report.agents[s.name].ugv_camera_rotation_error_deg->first, centre_cm.x(), centre_cm.y(),
+          centre_cm.z(), report.agents[s.name].ugv_camera_time_offset_ms->second,
+          report.agents[s.name].ugv_camera_time_offset_ms->first);
     }
   }
   result.agents = report.agents;
