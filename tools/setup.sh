@@ -13,6 +13,11 @@ PACKAGES=(
   liblcm-dev liblcm-bin liblcm-java libjchart2d-java libglib2.0-dev default-jdk-headless
   libspdlog-dev libyaml-cpp-dev libcli11-dev libhnswlib-dev libfaiss-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  # The system BLAS (libblas.so.3) that descriptor matching runs on: libceres3
+  # pulls in ATLAS, with which estimates take 1.8x as long ("Time per estimate"
+  # in the README). OpenBLAS outranks it in Debian's alternatives; serial, as
+  # the estimator runs on one core beside the map thread.
+  libopenblas0-serial
   python3-onnx
   iproute2 iptables clang-format clang-tidy
 )

@@ -24,6 +24,7 @@
 #include "common/wire/lcm_url.h"
 #include "common/wire/link_bytes.h"
 #include "common/wire/message_codec.h"
+#include "ground_server/matching/blas_info.h"
 #include "lcmtypes/checked_decode.h"
 
 namespace ag {
@@ -1216,6 +1217,7 @@ GroundServerApp::GroundServerApp(const GroundServerOptions& options, lcm::LCM* l
       throw std::runtime_error("cannot open LCM with url '" + plan.url + "'");
     s.lcm = s.owned_lcm.get();
   }
+  LogLoadedBlas();
   s.features = CreateFeatureExtractor(options.features);
   s.global = CreateGlobalDescriptorExtractor(options.global_descriptor, s.features->type());
   s.frontend = std::make_unique<UgvFrontend>(s.calibration, s.features.get(), s.global.get(),

@@ -10,6 +10,7 @@
 
 #include "common/config/options.h"
 #include "common/logging/logging.h"
+#include "ground_server/matching/blas_info.h"
 #include "tools/evaluation/evaluator.h"
 
 int main(int argc, char** argv) {
@@ -72,6 +73,7 @@ int main(int argc, char** argv) {
     if (duration > 0) options.max_duration_s = duration;
     ag::CheckOptions(options);
     spdlog::info("effective configuration:\n{}", ag::OptionsToString(options));
+    ag::LogLoadedBlas();
 
     const ag::Dataset dataset = ag::ReadDataset(dataset_dir);
     std::filesystem::create_directories(out_dir);
