@@ -98,7 +98,7 @@ struct EstimatorOptions {
   /// relations instead of at its newest keyframe's. With the UGV frontend's
   /// short camera-motion window, 10 s mapped the UGV 29% nearer to the
   /// truth on no_initial_covisibility and lowered the drift-free error on
-  /// both presets (README, "Accuracy").
+  /// both presets (tools/evaluation/ACCURACY.md).
   double max_air_span_s = 10.0;
   bool use_stage1 = true;         ///< r_GC (UGV window BA); off for the ablation
   int stage1_extra_tracks = 100;  ///< map-plane points of the newest UGV keyframe added to stage 1
@@ -114,7 +114,7 @@ struct EstimatorOptions {
   int scatter_window = 8;
   /// Added to the reported covariance: the bias a ~1 deg, 15 ms UGV camera
   /// calibration error leaves after stage 1 (measured on simulated data; see
-  /// the README), as an uncertainty of where the UGV camera maps to and a
+  /// tools/evaluation/ACCURACY.md), as an uncertainty of where the UGV camera maps to and a
   /// yaw about that point (PivotedBiasCovariance). Lower it for a better
   /// calibrated UGV. Where the simulated fixes map the UGV they are 5.5 cm
   /// off in the median; with 0.06 m the NEES over the 10-seed runs of both

@@ -42,7 +42,7 @@ class FixGate {
     /// Consecutive agreeing estimates for a new fix. Consecutive estimates
     /// share most of their data, so two can be wrong together: with 2, 6
     /// wrong first fixes were published over 10 no_initial_covisibility
-    /// seeds, with 3 one (README, "Accuracy").
+    /// seeds, with 3 one (tools/evaluation/ACCURACY.md).
     int confirmations = 3;
     /// ... to replace a current fix (a jump), for the same reason
     int jump_confirmations = 3;
@@ -53,7 +53,7 @@ class FixGate {
     /// confirms only with this many inliers per keypoint of those keyframes
     /// (0: always). Without it, at 512 keypoints three estimates of 56-63
     /// inliers on the same aliased UAV keyframes (the third 56 of 512, 0.11
-    /// per keypoint) published a 39 m false first fix (README, "Accuracy").
+    /// per keypoint) published a 39 m false first fix (tools/evaluation/ACCURACY.md).
     double repeat_min_inlier_fraction = 0.15;
 
     template <class V>

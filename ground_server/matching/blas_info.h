@@ -4,8 +4,8 @@
 // product goes through OpenCV to the system BLAS (libblas.so.3, chosen by
 // Debian's alternatives), and which one that is sets most of the matching
 // time: a 1024 x 1024 match takes 4.6 ms with OpenBLAS and 11.7 ms with
-// ATLAS, which libceres3 pulls in (tools/bench/match_bench; README, "Time
-// per estimate").
+// ATLAS, which libceres3 pulls in (tools/bench/match_bench; tools/evaluation/ACCURACY.md,
+// "Time per estimate").
 
 #include <string>
 

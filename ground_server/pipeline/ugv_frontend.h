@@ -34,7 +34,7 @@ class UgvFrontend {
     /// difference of LIO poses over +-this (s); images wait this long for
     /// the odometry to pass them. 0.02 s follows the vehicle's vibration,
     /// where 0.1 s averages it out, and gave a 4-10x more exact offset
-    /// (README, "Accuracy"); with EstimatorOptions::max_air_span_s it gave
+    /// (tools/evaluation/ACCURACY.md); with EstimatorOptions::max_air_span_s it gave
     /// better fixes on both simulated presets.
     double twist_half_window_s = 0.02;
 

@@ -83,7 +83,7 @@ class VoxelGrid {
     /// ago, sit where the odometry of that time put them, and the map near
     /// the vehicle then disagrees with its current pose by the drift since.
     /// Off by default: over 10 simulated seeds it helped `covisible` but not
-    /// `no_initial_covisibility` (README, "Accuracy").
+    /// `no_initial_covisibility` (tools/evaluation/ACCURACY.md).
     bool keep_latest = false;
     /// Voxel-count cap (LRU eviction). Memory is ~240 bytes per voxel with
     /// 10 points per voxel (map_bench), so ~120 MB at the default cap.

@@ -48,7 +48,7 @@ TEST(UgvFrontendTest, AnImageWaitsForTheOdometryPastItForItsCamerasMotion) {
 // ground vehicle much of that is vibration (the simulator's is 0.8-9 Hz roll
 // and pitch). The default +-0.02 s window follows it; the former default
 // +-0.1 s averages a 5 Hz oscillation out entirely and a 9 Hz one nearly so
-// (which left the offset estimate 2.5-4.5 ms off in the median, README).
+// (which left the offset estimate 2.5-4.5 ms off in the median, tools/evaluation/ACCURACY.md).
 TEST(UgvFrontendTest, AShortTwistWindowFollowsTheVehiclesVibration) {
   OdometryBuffer odometry;
   const double amplitude = 0.5 * M_PI / 180, hz = 9;

@@ -56,7 +56,7 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
   EXPECT_GT(nominal, 0.3) << "the scenario should have a mounting error to correct";
   EXPECT_LT(corrected, 0.5 * nominal);
   // Its position error is reported too; the calibrator corrects only the
-  // rotation (estimating the position made the fixes worse, README), so it
+  // rotation (estimating the position made the fixes worse, tools/evaluation/ACCURACY.md), so it
   // stays as nominal.
   const double shift = agent["ugv_camera_translation_error_m"]["nominal"].get<double>();
   EXPECT_GT(shift, 0.005) << "the scenario should have a camera position error";
@@ -72,7 +72,7 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
   EXPECT_GT(std::abs(true_offset), 5.0) << "the scenario should have a time offset to estimate";
   EXPECT_GT(offset * true_offset, 0.0) << "wrong sign";
   EXPECT_LT(std::abs(offset - true_offset), 0.5 * std::abs(true_offset));
-  // Bounds from what this pipeline achieves here (README, "Accuracy"): at
+  // Bounds from what this pipeline achieves here (tools/evaluation/ACCURACY.md): at
   // the 10-25 m of the matched structure the rest of the calibration error
   // is 5-35 cm. These bounds fail on a regression of matching, RANSAC or
   // refinement (without stage 1 the median yaw error here is 0.65 deg), not
