@@ -97,7 +97,7 @@ CameraRotationCalibrator::SolveResult CameraRotationCalibrator::Solve() {
   ceres::Problem problem;
   int used = 0;
   for (const PlaneTrackObservation& o : observations_) {
-    problem.AddResidualBlock(PlaneCutReprojectionError::Create(o, o.focal_px / options_.sigma_px),
+    problem.AddResidualBlock(new PlaneCutReprojectionCost(o, o.focal_px / options_.sigma_px),
                              MakeLoss(options_.loss), d.data(), &dt);
     ++used;
   }

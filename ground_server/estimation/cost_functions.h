@@ -13,6 +13,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
+#include <limits>
 
 #include "common/camera/camera.h"
 #include "ground_server/estimation/camera_rotation.h"
@@ -25,6 +27,13 @@ inline ceres::LossFunction* MakeLoss(const RobustLossOptions& o) {
   if (o.type == "huber") return new ceres::HuberLoss(o.scale);
   if (o.type == "cauchy") return new ceres::CauchyLoss(o.scale);
   return nullptr;
+}
+
+/// [x]x, the cross-product matrix: [x]x v = x.cross(v).
+inline Eigen::Matrix3d Skew(const Eigen::Vector3d& x) {
+  Eigen::Matrix3d S;
+  S << 0, -x.z(), x.y(), x.z(), 0, -x.x(), -x.y(), x.x(), 0;
+  return S;
 }
 
 /// Stage 1, eq. (r_GC): UGV reprojection of a map point in inverse-depth
@@ -156,12 +165,6 @@ class InverseDepthReprojectionCost final : public ceres::SizedCostFunction<2, 4,
   }
 
  private:
-  static Eigen::Matrix3d Skew(const Eigen::Vector3d& x) {
-    Eigen::Matrix3d S;
-    S << 0, -x.z(), x.y(), x.z(), 0, -x.x(), -x.y(), x.x(), 0;
-    return S;
-  }
-
   const Camera* camera_;
   Eigen::Vector2d f_h_;
   Eigen::Vector2d u_j_;
@@ -453,6 +456,119 @@ struct PlaneCutReprojectionError {
 
  private:
   PlaneTrackObservation o_;
+  double scale_;
+};
+
+/// PlaneCutReprojectionError with analytic Jacobians: the calibrator
+/// evaluates it over its whole sample (6000 observations) at every
+/// iteration, and with 4-wide jets that was two thirds of its solve
+/// (stage1_bench). The same residual, parameters and rejected steps; the
+/// tests hold it to the autodiff form. An angle-axis rotation phi is
+/// differentiated through the left Jacobian of SO(3),
+///   d(R(phi) v)/d(phi) = -[R(phi) v]x J_l(phi),
+/// and a rotation omega * dt about a fixed axis by dt as omega x (R v).
+class PlaneCutReprojectionCost final : public ceres::SizedCostFunction<2, 3, 1> {
+ public:
+  PlaneCutReprojectionCost(const PlaneTrackObservation& o, double scale)
+      : R_h_(o.T_wg_c_host.linear()),
+        t_h_(o.T_wg_c_host.translation()),
+        Rt_o_(o.T_wg_c_obs.linear().transpose()),
+        t_o_(o.T_wg_c_obs.translation()),
+        f_host_(o.f_host.x(), o.f_host.y(), 1.0),
+        f_obs_(o.f_obs),
+        n_(o.plane.head<3>()),
+        plane_d_(o.plane[3]),
+        omega_h_(o.omega_host_c),
+        v_h_(o.v_host_wg),
+        omega_o_(o.omega_obs_c),
+        v_o_(o.v_obs_wg),
+        scale_(scale) {}
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    using Mat3 = Eigen::Matrix3d;
+    using Vec3 = Eigen::Vector3d;
+    const Eigen::Map<const Vec3> d(parameters[0]);
+    const double dt = parameters[1][0];
+    const Mat3 R_d = AngleAxisMatrix(d);
+    const Mat3 R_wh = AngleAxisMatrix(omega_h_ * dt);
+    const Mat3 R_wo = AngleAxisMatrix(-omega_o_ * dt);
+    const Vec3 a = R_d * f_host_;
+    const Vec3 b = R_wh * a;
+    const Vec3 ray = R_h_ * b;
+    const Vec3 t_h = t_h_ + v_h_ * dt;
+    const double denom = n_.dot(ray);
+    const double s = -(n_.dot(t_h) + plane_d_) / denom;
+    if (!(s > 0.1)) return false;  // cut behind the camera: step rejected
+    const Vec3 p = t_h + s * ray;
+    const Mat3 to_obs = R_wo * Rt_o_;
+    const Vec3 y = to_obs * (p - t_o_ - v_o_ * dt);
+    const Vec3 x = R_d.transpose() * y;
+    if (!(x.z() > 1e-3)) return false;
+    residuals[0] = (x.x() / x.z() - f_obs_.x()) * scale_;
+    residuals[1] = (x.y() / x.z() - f_obs_.y()) * scale_;
+    if (jacobians == nullptr) return true;
+    const double iz = 1.0 / x.z();
+    Eigen::Matrix<double, 2, 3> J_x;  // whitened residual by x
+    J_x << iz, 0, -x.x() * iz * iz, 0, iz, -x.y() * iz * iz;
+    J_x *= scale_;
+    // Host ray and cut; then into the observing camera; d enters twice.
+    const Mat3 J_l = LeftJacobian(d);  // J_l(-d) = J_l(d)^T
+    const Mat3 ray_d = R_h_ * R_wh * (-Skew(a) * J_l);
+    const Vec3 ray_dt = R_h_ * omega_h_.cross(b);
+    const Eigen::RowVector3d s_d = -(s / denom) * (n_.transpose() * ray_d);
+    const double s_dt = -(n_.dot(v_h_) + s * n_.dot(ray_dt)) / denom;
+    const Mat3 p_d = ray * s_d + s * ray_d;
+    const Vec3 p_dt = v_h_ + ray * s_dt + s * ray_dt;
+    const Mat3 x_d = R_d.transpose() * (to_obs * p_d) + Skew(x) * J_l.transpose();
+    const Vec3 x_dt = R_d.transpose() * ((-omega_o_).cross(y) + to_obs * (p_dt - v_o_));
+    if (jacobians[0] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> J(jacobians[0]);
+      J = J_x * x_d;
+    }
+    if (jacobians[1] != nullptr) {
+      Eigen::Map<Eigen::Vector2d> J(jacobians[1]);
+      J = J_x * x_dt;
+    }
+    return true;
+  }
+
+ private:
+  /// As ceres::AngleAxisRotatePoint rotates: first order below machine
+  /// epsilon in the squared angle.
+  static Eigen::Matrix3d AngleAxisMatrix(const Eigen::Vector3d& phi) {
+    const double theta2 = phi.squaredNorm();
+    if (theta2 > std::numeric_limits<double>::epsilon()) {
+      const double theta = std::sqrt(theta2);
+      return Eigen::AngleAxisd(theta, phi / theta).toRotationMatrix();
+    }
+    return Eigen::Matrix3d::Identity() + Skew(phi);
+  }
+  /// J_l(phi) = I + (1 - cos t) / t^2 [phi]x + (t - sin t) / t^3 [phi]x^2,
+  /// by its series where those quotients lose digits.
+  static Eigen::Matrix3d LeftJacobian(const Eigen::Vector3d& phi) {
+    const double theta2 = phi.squaredNorm();
+    double a, b;
+    if (theta2 < 1e-8) {
+      a = 0.5 - theta2 / 24;
+      b = 1.0 / 6 - theta2 / 120;
+    } else {
+      const double theta = std::sqrt(theta2);
+      a = (1 - std::cos(theta)) / theta2;
+      b = (theta - std::sin(theta)) / (theta2 * theta);
+    }
+    const Eigen::Matrix3d S = Skew(phi);
+    return Eigen::Matrix3d::Identity() + a * S + b * S * S;
+  }
+
+  Eigen::Matrix3d R_h_;
+  Eigen::Vector3d t_h_;
+  Eigen::Matrix3d Rt_o_;
+  Eigen::Vector3d t_o_, f_host_;
+  Eigen::Vector2d f_obs_;
+  Eigen::Vector3d n_;
+  double plane_d_;
+  Eigen::Vector3d omega_h_, v_h_, omega_o_, v_o_;
   double scale_;
 };
 

@@ -163,6 +163,8 @@ EvaluationResult Evaluate(const Dataset& dataset, const EvaluateOptions& options
       log.T_wa_wg = r.T_wa_wg;
       log.inliers = r.inliers;
       log.air_seqs = r.air_seqs;
+      log.time_ms = r.timing.total_ms;
+      log.stage1_ms = r.timing.stage1_ms;
       log.covariance = r.covariance;
       log.has_covariance = r.has_covariance;
       std::optional<Pose> observable;  // the drift-free truth, with ground truth
@@ -435,11 +437,13 @@ void WriteEstimatesCsv(const std::string& path, const std::vector<EstimateLog>& 
          "error_* against groundtruth.yaml, drift_free_* against the relation of the two "
          "odometry worlds at the estimate's time (drift_free_at_ugv_m: where it maps the UGV "
          "camera), truth_drift_* between the two truths (empty without ground truth); "
-         "air_keyframes: the seq of every UAV keyframe the estimate used\n";
+         "time_ms, stage1_ms: the estimate's wall-clock time and stage 1's part of it (camera "
+         "rotation calibrator included); air_keyframes: the seq of every UAV keyframe the "
+         "estimate used\n";
   out << "t_s,success,published,x,y,z,yaw_deg,sd_x,sd_y,sd_z,sd_yaw_deg,inliers,"
          "error_t_m,error_yaw_deg,drift_free_dx,drift_free_dy,drift_free_dz,"
-         "drift_free_dyaw_deg,drift_free_at_ugv_m,truth_drift_m,truth_drift_yaw_deg,air_keyframes,"
-         "reason\n";
+         "drift_free_dyaw_deg,drift_free_at_ugv_m,truth_drift_m,truth_drift_yaw_deg,time_ms,"
+         "stage1_ms,air_keyframes,reason\n";
   out << std::setprecision(9);
   for (const EstimateLog& e : estimates) {
     out << 1e-9 * static_cast<double>(e.t_ns - t0_ns) << ',' << int(e.success) << ','
@@ -470,6 +474,11 @@ void WriteEstimatesCsv(const std::string& path, const std::vector<EstimateLog>& 
     if (e.drift_free_error_at_ugv_m) out << *e.drift_free_error_at_ugv_m;
     if (e.truth_drift) {
       out << ',' << e.truth_drift->translation_m << ',' << e.truth_drift->yaw_deg;
+    } else {
+      out << ",,";
+    }
+    if (e.success) {
+      out << ',' << e.time_ms << ',' << e.stage1_ms;
     } else {
       out << ",,";
     }

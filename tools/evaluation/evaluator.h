@@ -79,6 +79,8 @@ struct EstimateLog {
   bool has_covariance = false;
   int inliers = 0;
   std::vector<int64_t> air_seqs;  ///< the UAV keyframes the estimate used
+  double time_ms = 0;             ///< wall clock of the estimate (EstimateTiming::total_ms)
+  double stage1_ms = 0;           ///< of which stage 1 (EstimateTiming::stage1_ms)
 };
 
 struct EvaluationResult {

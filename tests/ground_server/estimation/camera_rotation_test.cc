@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -111,6 +112,64 @@ TEST(PlaneCutReprojectionTest, VanishesAtTheTrueCorrectionOnly) {
   EXPECT_LT(worst_at_truth, 1e-6);
   // Uncorrected, the cuts land elsewhere: pixels of error on average.
   EXPECT_GT(sum_at_zero / obs.size(), 1.0);
+}
+
+TEST(PlaneCutReprojectionTest, AnalyticJacobiansMatchAutodiff) {
+  // Random corrections up to 3 deg (and exactly zero, where the rotations
+  // take their first-order branch), time offsets up to 50 ms, turning up to
+  // 30 deg/s and speeds up to 3 m/s, on the L scene's observations.
+  const LScene scene(Rotation(1.0, {0.4, -1.0, 0.3}));
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const auto random3 = [&](double scale) -> Eigen::Vector3d {
+    return Eigen::Vector3d(u(rng), u(rng), u(rng)) * scale;
+  };
+  int compared = 0;
+  int trial = 0;
+  for (auto [key, o] : scene.Observe(200, 0.5, 0.05, 13)) {
+    o.omega_host_c = random3(30 * kDeg);
+    o.v_host_wg = random3(3);
+    o.omega_obs_c = random3(30 * kDeg);
+    o.v_obs_wg = random3(3);
+    const bool at_zero = trial % 10 == 0;
+    const Eigen::Vector3d d = at_zero ? Eigen::Vector3d::Zero() : random3(3 * kDeg);
+    const double dt = at_zero ? 0.0 : 0.05 * u(rng);
+    const double* params[2] = {d.data(), &dt};
+    std::unique_ptr<ceres::CostFunction> autodiff(PlaneCutReprojectionError::Create(o, 500));
+    const PlaneCutReprojectionCost analytic(o, 500);
+    double r_auto[2], r_analytic[2], Jd_auto[6], Jt_auto[2], Jd_analytic[6], Jt_analytic[2];
+    double* ja[2] = {Jd_auto, Jt_auto};
+    double* jb[2] = {Jd_analytic, Jt_analytic};
+    const bool ok = autodiff->Evaluate(params, r_auto, ja);
+    ASSERT_EQ(analytic.Evaluate(params, r_analytic, jb), ok) << "trial " << trial;
+    ++trial;
+    if (!ok) continue;
+    ++compared;
+    for (int k = 0; k < 2; ++k) {
+      EXPECT_NEAR(r_analytic[k], r_auto[k], 1e-9 * (1 + std::abs(r_auto[k])));
+      EXPECT_NEAR(Jt_analytic[k], Jt_auto[k], 1e-8 * (1 + std::abs(Jt_auto[k])));
+    }
+    for (int k = 0; k < 6; ++k) {
+      EXPECT_NEAR(Jd_analytic[k], Jd_auto[k], 1e-8 * (1 + std::abs(Jd_auto[k])))
+          << "entry " << k << " trial " << trial;
+    }
+    double r_only[2];
+    ASSERT_TRUE(analytic.Evaluate(params, r_only, nullptr));
+    EXPECT_EQ(r_only[0], r_analytic[0]);
+  }
+  EXPECT_GE(compared, 180) << "most observations must cut their plane in front of the camera";
+
+  // A cut behind the host camera rejects the step in both.
+  PlaneTrackObservation behind = scene.Observe(1, 0, 0, 13).front().second;
+  const Eigen::Vector3d z = behind.T_wg_c_host.linear().col(2);  // the host's optical axis
+  behind.plane << z, -z.dot(behind.T_wg_c_host.translation() - 5 * z);
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+  const double no_offset = 0;
+  const double* params[2] = {zero.data(), &no_offset};
+  double r[2];
+  std::unique_ptr<ceres::CostFunction> autodiff(PlaneCutReprojectionError::Create(behind, 500));
+  EXPECT_FALSE(autodiff->Evaluate(params, r, nullptr));
+  EXPECT_FALSE(PlaneCutReprojectionCost(behind, 500).Evaluate(params, r, nullptr));
 }
 
 TEST(CameraRotationCalibratorTest, RecoversAConstantMountingRotation) {

@@ -113,7 +113,7 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
   std::getline(csv, line);
   EXPECT_EQ(line.rfind("t_s,success,published,x,y,z,yaw_deg,", 0), 0u) << line;
   size_t rows = 0;
-  EXPECT_NE(line.find(",air_keyframes,reason"), std::string::npos) << line;
+  EXPECT_NE(line.find(",time_ms,stage1_ms,air_keyframes,reason"), std::string::npos) << line;
   int published = 0, with_residual = 0;
   while (std::getline(csv, line)) {
     ++rows;
@@ -124,8 +124,10 @@ TEST(EvaluateSim, SmallScenarioFixesAreAccurateConsistentAndNeverFalse) {
     published += cells[2] == "1";
     with_residual += !cells[14].empty();
     if (cells[1] == "1") {
-      ASSERT_GE(cells.size(), 22u) << line;
-      EXPECT_FALSE(cells[21].empty()) << "an estimate names its UAV keyframes: " << line;
+      ASSERT_GE(cells.size(), 24u) << line;
+      EXPECT_GT(std::stod(cells[21]), 0.0) << "an estimate has its time: " << line;
+      EXPECT_LE(std::stod(cells[22]), std::stod(cells[21])) << "stage 1 is part of it: " << line;
+      EXPECT_FALSE(cells[23].empty()) << "an estimate names its UAV keyframes: " << line;
     }
   }
   EXPECT_EQ(rows, result.estimates.at("uav1").size());
