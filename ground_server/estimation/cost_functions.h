@@ -411,6 +411,9 @@ struct RelativePoseConsistencyError {
 /// so the reprojection in o misses its match. With a time offset dt each
 /// LIO pose is first moved along the camera's motion, to first order:
 /// R -> R Exp(omega_c dt), t -> t + v_wg dt. Parameters: d (3), dt (1).
+/// The calibrator uses PlaneCutReprojectionCost below (the same residual,
+/// analytic Jacobians); this autodiff form is the reference the tests and
+/// stage1_bench hold it to.
 struct PlaneCutReprojectionError {
   PlaneCutReprojectionError(const PlaneTrackObservation& o, double scale) : o_(o), scale_(scale) {}
 
