@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <opencv2/core.hpp>
 #include <random>
 
@@ -116,6 +118,76 @@ TEST(MatcherTest, BackendsAgreeForAFewRowsAgainstMany) {
   // The ratio and mutual tests still see b's rows: the nearest neighbours
   // of a few rows.
   ExpectBackendsAgree(MakePair(3, 500, 0.05f, 9), 2);
+}
+
+// The plain scan the gemm backend's vectorised one must equal: nearest
+// (first index on ties) and second nearest by squared distance, both ways.
+std::vector<DescriptorMatch> PlainScan(const cv::Mat& a, const cv::Mat& b, float ratio) {
+  std::vector<int> nearest_a(b.rows, -1);
+  std::vector<float> best_b(b.rows, INFINITY);
+  std::vector<std::array<float, 2>> d12(a.rows, {INFINITY, INFINITY});
+  std::vector<int> nearest_b(a.rows, -1);
+  for (int i = 0; i < a.rows; ++i) {
+    for (int j = 0; j < b.rows; ++j) {
+      const float d = static_cast<float>(cv::norm(a.row(i), b.row(j), cv::NORM_L2SQR));
+      if (d < d12[i][0]) {
+        d12[i] = {d, d12[i][0]};
+        nearest_b[i] = j;
+      } else if (d < d12[i][1]) {
+        d12[i][1] = d;
+      }
+      if (d < best_b[j]) {
+        best_b[j] = d;
+        nearest_a[j] = i;
+      }
+    }
+  }
+  std::vector<DescriptorMatch> out;
+  for (int i = 0; i < a.rows; ++i) {
+    const int j = nearest_b[i];
+    if (j >= 0 && d12[i][0] <= ratio * ratio * d12[i][1] && nearest_a[j] == i) {
+      out.push_back({i, j, std::sqrt(d12[i][0])});
+    }
+  }
+  return out;
+}
+
+TEST(MatcherTest, GemmEqualsThePlainScanAroundItsLaneWidth) {
+  // The gemm backend scans each row's distances in 16 lanes and pads the
+  // last; sizes below, at and above multiples of 16, with duplicated rows
+  // in b (a tie for the nearest must fail the ratio test, and the first of
+  // tied rows of a must win a column).
+  std::mt19937 rng(5);
+  for (int nb : {1, 2, 15, 16, 17, 31, 32, 33, 100}) {
+    for (int na : {1, 16, 17, 40}) {
+      SCOPED_TRACE("a " + std::to_string(na) + " x b " + std::to_string(nb));
+      cv::Mat a = RandomUnitRows(na, 64, rng);
+      cv::Mat b = RandomUnitRows(nb, 64, rng);
+      // b's last row is near a's row 0, and so is an exact copy of it when
+      // b has room; a's last row repeats a's row 0.
+      cv::Mat near = a.row(0) + 0.1 * RandomUnitRows(1, 64, rng);
+      cv::normalize(near, near);
+      near.copyTo(b.row(nb - 1));
+      if (nb > 2) near.copyTo(b.row(nb / 2));
+      if (na > 1) a.row(0).copyTo(a.row(na - 1));
+      MatcherOptions o;
+      o.max_distance = 2.0;
+      o.ratio = 0.95;
+      const auto gemm = MatchDescriptors(a, b, o);
+      const auto plain = PlainScan(a, b, 0.95f);
+      ASSERT_EQ(gemm.size(), plain.size());
+      for (size_t k = 0; k < gemm.size(); ++k) {
+        EXPECT_EQ(gemm[k].a, plain[k].a);
+        EXPECT_EQ(gemm[k].b, plain[k].b);
+        EXPECT_NEAR(gemm[k].distance, plain[k].distance, 1e-3);
+      }
+      const bool tied = nb > 2;
+      const bool matched_row0 = !gemm.empty() && gemm[0].a == 0;
+      if (tied) {
+        EXPECT_FALSE(matched_row0) << "a tie for the nearest passed the ratio test";
+      }
+    }
+  }
 }
 
 TEST(MatcherTest, DimensionMismatchIsAnError) {
