@@ -113,7 +113,7 @@ void SearchGemm(const cv::Mat& a, const cv::Mat& b, Nearest* ab, Nearest* ba) {
   ba->index.assign(n, -1);
   ba->d1.assign(n, INFINITY);
   ba->d2.assign(n, INFINITY);
-  // Scanned plainly, element by element with branches, the product took
+  // A plain scan of the product, element by element with branches, took
   // as long as computing it (perf, `covisible` seed 1). So no loop below
   // carries a value from one column to the next: each column keeps its own
   // nearest row, and each row's nearest columns are kept per lane (columns
