@@ -25,6 +25,11 @@ struct FeatureOptions {
       0.05;  ///< XFeat: minimum keypoint probability after softmax ([0, 1])
   int nms_kernel_px =
       5;  ///< XFeat: non-maximum suppression window (odd, network px, 640x640 input)
+  /// XFeat: network inputs (640x640) per image at most. An image larger than
+  /// one is cut into overlapping tiles at native resolution, or as close to
+  /// it as this many allow (1: shrunk into one input, e.g. 1242x375 to
+  /// 640x193); each tile costs one network pass (count)
+  int max_tiles = 2;
   double sift_contrast_threshold = 0.04;  ///< SIFT: OpenCV contrastThreshold (lower = more points)
 
   template <class V>
@@ -34,6 +39,7 @@ struct FeatureOptions {
     v("top_k", top_k);
     v("detection_threshold", detection_threshold);
     v("nms_kernel_px", nms_kernel_px);
+    v("max_tiles", max_tiles);
     v("sift_contrast_threshold", sift_contrast_threshold);
   }
   void Check() const {
@@ -44,6 +50,7 @@ struct FeatureOptions {
                 "must be in [0, 1)");
     CheckOption(nms_kernel_px >= 1 && nms_kernel_px % 2 == 1 && nms_kernel_px <= 31,
                 "nms_kernel_px", "must be odd, in [1, 31]");
+    CheckOption(max_tiles >= 1 && max_tiles <= 64, "max_tiles", "must be in [1, 64]");
     CheckOption(sift_contrast_threshold > 0, "sift_contrast_threshold", "must be > 0");
   }
 };

@@ -198,11 +198,7 @@ XFeatExtractor::XFeatExtractor(const std::string& model_path, const FeatureOptio
   }
 }
 
-LocalFeatures XFeatExtractor::Extract(const cv::Mat& image) const {
-  const cv::Mat img = internal::CheckedImage8U(image, "XFeatExtractor::Extract");
-  const Letterbox box = ComputeLetterbox(img.size(), cv::Size(kInputSize, kInputSize));
-  const cv::Mat boxed = ApplyLetterbox(img, box);
-
+internal::XFeatDecoded XFeatExtractor::RunAndDecode(const cv::Mat& input, cv::Size content) const {
   // NCHW blob in [0, 1], RGB order as upstream (the network averages the
   // three channels, so grey input is simply replicated).
   const int shape[] = {1, 3, kInputSize, kInputSize};
@@ -211,13 +207,13 @@ LocalFeatures XFeatExtractor::Extract(const cv::Mat& image) const {
   auto blob_plane = [&](int c) {
     return cv::Mat(kInputSize, kInputSize, CV_32F, blob.ptr<float>() + c * plane);
   };
-  if (boxed.channels() == 1) {
-    boxed.convertTo(blob_plane(0), CV_32F, 1.0 / 255.0);
+  if (input.channels() == 1) {
+    input.convertTo(blob_plane(0), CV_32F, 1.0 / 255.0);
     blob_plane(0).copyTo(blob_plane(1));
     blob_plane(0).copyTo(blob_plane(2));
   } else {
     cv::Mat bgr[3];
-    cv::split(boxed, bgr);
+    cv::split(input, bgr);
     for (int c = 0; c < 3; ++c) bgr[2 - c].convertTo(blob_plane(c), CV_32F, 1.0 / 255.0);
   }
 
@@ -226,26 +222,74 @@ LocalFeatures XFeatExtractor::Extract(const cv::Mat& image) const {
   decode.top_k = options_.top_k;
   decode.detection_threshold = static_cast<float>(options_.detection_threshold);
   decode.nms_kernel_px = options_.nms_kernel_px;
-  internal::XFeatDecoded decoded;
-  {
-    // The outputs share memory with the network's buffers: decode them
-    // before another call may run the network again.
-    std::lock_guard<std::mutex> lock(mutex_);
-    std::vector<cv::Mat> outputs;
-    net_.setInput(blob, "input");
-    net_.forward(outputs, kOutputNames);
-    decoded = internal::DecodeXFeat(outputs[0].ptr<float>(), outputs[1].ptr<float>(),
-                                    outputs[2].ptr<float>(), cells, box.content, decode);
-  }
+  // The outputs share memory with the network's buffers: decode them
+  // before another call may run the network again.
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<cv::Mat> outputs;
+  net_.setInput(blob, "input");
+  net_.forward(outputs, kOutputNames);
+  return internal::DecodeXFeat(outputs[0].ptr<float>(), outputs[1].ptr<float>(),
+                               outputs[2].ptr<float>(), cells, content, decode);
+}
 
+LocalFeatures XFeatExtractor::Extract(const cv::Mat& image) const {
+  const cv::Mat img = internal::CheckedImage8U(image, "XFeatExtractor::Extract");
+  const cv::Size input(kInputSize, kInputSize);
   LocalFeatures features;
   features.descriptor_type = type();
-  features.keypoints.reserve(decoded.keypoints.size());
-  for (const Eigen::Vector2f& p_net : decoded.keypoints) {
-    features.keypoints.push_back(box.ToOriginal(p_net));
+  if (options_.max_tiles == 1 || (img.cols <= kInputSize && img.rows <= kInputSize)) {
+    // One input: the image letterboxed into it (a small one enlarged).
+    const Letterbox box = ComputeLetterbox(img.size(), input);
+    internal::XFeatDecoded decoded = RunAndDecode(ApplyLetterbox(img, box), box.content);
+    features.keypoints.reserve(decoded.keypoints.size());
+    for (const Eigen::Vector2f& p_net : decoded.keypoints) {
+      features.keypoints.push_back(box.ToOriginal(p_net));
+    }
+    features.scores = std::move(decoded.scores);
+    features.descriptors = decoded.descriptors;
+    return features;
   }
-  features.scores = std::move(decoded.scores);
-  features.descriptors = decoded.descriptors;
+
+  // Several inputs: each tile of the (scaled) image decoded on its own, its
+  // keypoints kept where the tile owns them, then the best top_k of all.
+  const TileLayout layout = ComputeTileLayout(img.size(), input, options_.max_tiles, kTileOverlap);
+  const cv::Mat scaled = ApplyLetterbox(img, layout.scaled);
+  struct Candidate {
+    float score;
+    Eigen::Vector2f p;  // scaled-image px
+    size_t tile;
+    int row;
+  };
+  std::vector<internal::XFeatDecoded> decoded(layout.tiles.size());
+  std::vector<Candidate> candidates;
+  for (size_t t = 0; t < layout.tiles.size(); ++t) {
+    const cv::Rect& tile = layout.tiles[t];
+    const cv::Mat crop = scaled(tile);
+    const Letterbox pad{crop.size(), crop.size(), input, 1.0, 1.0};
+    decoded[t] = RunAndDecode(ApplyLetterbox(crop, pad), tile.size());
+    for (size_t k = 0; k < decoded[t].keypoints.size(); ++k) {
+      const Eigen::Vector2f p = decoded[t].keypoints[k] + Eigen::Vector2f(tile.x, tile.y);
+      if (!layout.owned[t].contains(cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())))) {
+        continue;
+      }
+      candidates.push_back({decoded[t].scores[k], p, t, static_cast<int>(k)});
+    }
+  }
+  const size_t keep = std::min(candidates.size(), static_cast<size_t>(options_.top_k));
+  std::partial_sort(candidates.begin(), candidates.begin() + keep, candidates.end(),
+                    [](const Candidate& a, const Candidate& b) {
+                      if (a.score != b.score) return a.score > b.score;
+                      return a.p.y() != b.p.y() ? a.p.y() < b.p.y() : a.p.x() < b.p.x();
+                    });
+  features.keypoints.reserve(keep);
+  features.scores.reserve(keep);
+  features.descriptors.create(static_cast<int>(keep), kDim, CV_32F);
+  for (size_t k = 0; k < keep; ++k) {
+    const Candidate& c = candidates[k];
+    features.keypoints.push_back(layout.scaled.ToOriginal(c.p));
+    features.scores.push_back(c.score);
+    decoded[c.tile].descriptors.row(c.row).copyTo(features.descriptors.row(static_cast<int>(k)));
+  }
   return features;
 }
 

@@ -17,13 +17,26 @@
 
 namespace ag {
 
+namespace internal {
+struct XFeatDecoded;
+}  // namespace internal
+
 /// XFeat keypoints and 64-D descriptors. The model has a fixed 640x640
-/// input: images are letterboxed into it and keypoints mapped back.
+/// input. An image that fits is letterboxed into it (a smaller one
+/// enlarged); a larger one is cut into up to FeatureOptions::max_tiles
+/// overlapping tiles at native resolution (or as close to it as that many
+/// allow), each run through the network, their keypoints merged by score;
+/// with max_tiles 1 it is shrunk into one input. Keypoints are mapped back
+/// into the image's pixels.
 class XFeatExtractor : public FeatureExtractor {
  public:
   static constexpr int kInputSize = 640;  ///< network input width = height (px)
   static constexpr int kCell = 8;         ///< output stride (px)
   static constexpr int kDim = 64;         ///< descriptor length
+  /// Least overlap of neighbouring tiles (px): each tile keeps keypoints at
+  /// least half of it away from an edge it shares, where the network sees
+  /// padding instead of the neighbour's pixels.
+  static constexpr int kTileOverlap = 32;
 
   /// Loads the ONNX model; throws std::runtime_error naming `model_path`
   /// when it is absent or cannot be loaded, or lacks the expected outputs.
@@ -34,6 +47,10 @@ class XFeatExtractor : public FeatureExtractor {
   std::string type() const override { return "xfeat"; }
 
  private:
+  /// One network pass over a 640x640 `input` whose top-left `content` is
+  /// image; keypoints in input px.
+  internal::XFeatDecoded RunAndDecode(const cv::Mat& input, cv::Size content) const;
+
   std::string model_path_;
   FeatureOptions options_;
   mutable std::mutex mutex_;  ///< cv::dnn::Net::forward is not re-entrant

@@ -16,6 +16,8 @@
 #include <random>
 
 #include "common/features/feature_extractor.h"
+#include "common/features/letterbox.h"
+#include "common/features/xfeat_extractor.h"
 #include "common/wire/channels.h"
 #include "common/wire/keyframe_codec.h"
 #include "common/wire/link_bytes.h"
@@ -230,6 +232,40 @@ int main(int argc, char** argv) {
         std::printf("| %d | %.1f | %.4f | %s | %.4f | %.4f | %.4f |\n", n, MedianMs(times),
                     base_prec, ag::ToString(e), prec, base_prec > 0 ? prec / base_prec : 0.0,
                     base_correct > 0 ? static_cast<double>(correct) / base_correct : 0.0);
+      }
+    }
+  }
+  // What native resolution costs: XFeat's input is 640x640, so a larger
+  // image is either shrunk into one input or cut into tiles
+  // (features.max_tiles), one network pass each.
+  if (!ag::ResolveXFeatModelPath(model).empty()) {
+    std::printf(
+        "\nXFeat extraction by image size and features.max_tiles (the real images resized; "
+        "1024 keypoints; median over %zu images)\n",
+        images.size());
+    std::printf("| image | max_tiles | network passes | scale | extraction ms (median) |\n");
+    std::printf("|---|---|---|---|---|\n");
+    for (const cv::Size size : {images[0].size(), cv::Size(1280, 720), cv::Size(1920, 1080)}) {
+      for (int max_tiles : {1, 2, 6}) {
+        ag::FeatureOptions fo;
+        fo.model_path = model;
+        fo.max_tiles = max_tiles;
+        const auto extractor = ag::CreateFeatureExtractor(fo);
+        const ag::TileLayout layout = ag::ComputeTileLayout(
+            size, {ag::XFeatExtractor::kInputSize, ag::XFeatExtractor::kInputSize}, max_tiles,
+            ag::XFeatExtractor::kTileOverlap);
+        std::vector<double> times;
+        for (const cv::Mat& img : images) {
+          cv::Mat resized;
+          cv::resize(img, resized, size, 0, 0, cv::INTER_LINEAR);
+          const auto t0 = std::chrono::steady_clock::now();
+          extractor->Extract(resized);
+          times.push_back(
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                  .count());
+        }
+        std::printf("| %dx%d | %d | %zu | %.3f | %.1f |\n", size.width, size.height, max_tiles,
+                    layout.tiles.size(), layout.scaled.scale_x, MedianMs(times));
       }
     }
   }

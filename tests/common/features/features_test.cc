@@ -24,10 +24,11 @@ namespace {
 constexpr const char* kKitti =
     "data/kitti_raw_2011_09_26_drive_0001_mini/2011_09_26/2011_09_26_drive_0001_sync/";
 
-std::unique_ptr<FeatureExtractor> XFeat(const std::string& model, int top_k) {
+std::unique_ptr<FeatureExtractor> XFeat(const std::string& model, int top_k, int max_tiles = 2) {
   FeatureOptions o;
   o.model_path = model;
   o.top_k = top_k;
+  o.max_tiles = max_tiles;
   auto e = CreateFeatureExtractor(o);
   EXPECT_EQ(e->type(), "xfeat");
   return e;
@@ -117,12 +118,72 @@ TEST(XFeatTest, KittiStereoMatchesFollowTheEpipolarGeometry) {
   EXPECT_GT(fraction, 0.7);
 }
 
-TEST(XFeatTest, LetterboxKeepsKeypointsInTheImageAndTopKSorted) {
+/// Rows of the rectified KITTI stereo pairs (frames 0-4): |row difference|
+/// of the mutual matches that are on the epipolar line within 2 px.
+struct StereoRows {
+  size_t matches = 0;
+  double rms_px = 0;
+  double p90_px = 0;
+  float min_x = 1e9f, max_x = -1e9f;  ///< of the left image's matched keypoints
+};
+
+StereoRows MeasureStereoRows(const FeatureExtractor& extractor, const std::string& drive) {
+  std::vector<float> dy;
+  StereoRows out;
+  for (int frame = 0; frame < 5; ++frame) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "data/%010d.png", frame);
+    const LocalFeatures l = extractor.Extract(cv::imread(drive + "image_02/" + name));
+    const LocalFeatures r = extractor.Extract(cv::imread(drive + "image_03/" + name));
+    for (const auto& m : MutualMatches(l, r)) {
+      const Eigen::Vector2f a = l.keypoints[m.queryIdx], b = r.keypoints[m.trainIdx];
+      const float e = std::abs(a.y() - b.y());
+      if (e > 2.0f || a.x() - b.x() < -1.0f) continue;
+      dy.push_back(e);
+      out.min_x = std::min(out.min_x, a.x());
+      out.max_x = std::max(out.max_x, a.x());
+    }
+  }
+  out.matches = dy.size();
+  if (dy.empty()) return out;
+  double sum2 = 0;
+  for (float e : dy) sum2 += e * e;
+  out.rms_px = std::sqrt(sum2 / dy.size());
+  std::sort(dy.begin(), dy.end());
+  out.p90_px = dy[dy.size() * 9 / 10];
+  return out;
+}
+
+TEST(XFeatTest, TilesKeepKittisNativeResolution) {
   AG_REQUIRE_SHARED(model, "models/xfeat.onnx");
-  for (const cv::Size size : {cv::Size(1242, 375), cv::Size(300, 700), cv::Size(640, 640)}) {
+  AG_REQUIRE_SHARED(drive, kKitti);  // ends in '/'
+  // 1242x375: shrunk into one input (half the resolution) or cut into two
+  // tiles at native resolution (the default).
+  const StereoRows shrunk = MeasureStereoRows(*XFeat(model, 1024, 1), drive);
+  const StereoRows native = MeasureStereoRows(*XFeat(model, 1024, 2), drive);
+  std::printf(
+      "KITTI stereo rows, one input: %zu matches, rms %.3f px, p90 %.3f px; two tiles: %zu "
+      "matches, rms %.3f px, p90 %.3f px\n",
+      shrunk.matches, shrunk.rms_px, shrunk.p90_px, native.matches, native.rms_px, native.p90_px);
+  // Measured: one input rms 1.10 px, p90 1.94 px (a network pixel is 1.94
+  // image pixels); two tiles rms 0.84 px, p90 1.00 px, from 2676 matches.
+  ASSERT_GT(native.matches, 1500u);
+  EXPECT_LT(native.rms_px, 0.95);
+  EXPECT_LT(native.rms_px, 0.85 * shrunk.rms_px);
+  EXPECT_LE(native.p90_px, 1.0);
+  // Matches come from both tiles, up to both ends of the image.
+  EXPECT_LT(native.min_x, 100.0f);
+  EXPECT_GT(native.max_x, 1142.0f);
+}
+
+TEST(XFeatTest, LetterboxAndTilesKeepKeypointsInTheImageAndTopKSorted) {
+  AG_REQUIRE_SHARED(model, "models/xfeat.onnx");
+  for (const cv::Size size :
+       {cv::Size(1242, 375), cv::Size(300, 700), cv::Size(640, 640), cv::Size(1280, 720)}) {
     const cv::Mat image = MakeProceduralImage(size, 3);
-    for (int top_k : {128, 512}) {
-      const auto xfeat = XFeat(model, top_k);
+    for (const auto& [top_k, max_tiles] : {std::pair{128, 1}, {512, 1}, {128, 2}, {512, 4}}) {
+      SCOPED_TRACE(testing::Message() << size << " top_k " << top_k << " max_tiles " << max_tiles);
+      const auto xfeat = XFeat(model, top_k, max_tiles);
       const LocalFeatures f = xfeat->Extract(image);
       ASSERT_GT(f.size(), 0u);
       EXPECT_LE(static_cast<int>(f.size()), top_k);
@@ -140,18 +201,27 @@ TEST(XFeatTest, LetterboxKeepsKeypointsInTheImageAndTopKSorted) {
       }
     }
   }
-  // A corner structure is found where it is, through the letterbox.
+  // A corner structure is found where it is, through the letterbox and
+  // through the tiles (its left and right edges in different tiles), and
+  // only once where two tiles overlap.
   cv::Mat img(375, 1242, CV_8UC1, cv::Scalar(0));
   cv::rectangle(img, {600, 150, 200, 120}, cv::Scalar(255), cv::FILLED);
-  const LocalFeatures f = XFeat(model, 64)->Extract(img);
-  int near_corner = 0;
-  for (const auto& k : f.keypoints) {
-    for (const Eigen::Vector2f& c : {Eigen::Vector2f(600, 150), Eigen::Vector2f(799, 150),
-                                     Eigen::Vector2f(600, 269), Eigen::Vector2f(799, 269)}) {
-      near_corner += (k - c).norm() < 6.0f;
+  for (int max_tiles : {1, 2}) {
+    const LocalFeatures f = XFeat(model, 64, max_tiles)->Extract(img);
+    int near_corner = 0;
+    for (const auto& k : f.keypoints) {
+      for (const Eigen::Vector2f& c : {Eigen::Vector2f(600, 150), Eigen::Vector2f(799, 150),
+                                       Eigen::Vector2f(600, 269), Eigen::Vector2f(799, 269)}) {
+        near_corner += (k - c).norm() < 6.0f;
+      }
+    }
+    EXPECT_GE(near_corner, 3) << "max_tiles " << max_tiles;
+    for (size_t i = 0; i < f.size(); ++i) {
+      for (size_t j = i + 1; j < f.size(); ++j) {
+        EXPECT_GT((f.keypoints[i] - f.keypoints[j]).norm(), 1.0f) << "max_tiles " << max_tiles;
+      }
     }
   }
-  EXPECT_GE(near_corner, 3);
 }
 
 TEST(FeatureFactoryTest, MissingModelFallsBackToSiftWithALoudWarning) {

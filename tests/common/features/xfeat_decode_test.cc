@@ -1,5 +1,6 @@
 // XFeat's post-processing against a slow, obviously-correct reference, the
-// letterbox mapping, determinism, and the model path resolution.
+// letterbox mapping, the tile layout, determinism, and the model path
+// resolution.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -257,11 +258,118 @@ TEST(LetterboxTest, ContentAtTopLeftPaddingIsTheMeanColour) {
                std::invalid_argument);
 }
 
+// The tiles of an image larger than the input: the properties every layout
+// must have, on the sizes cameras have and on random ones.
+void ExpectValidLayout(const TileLayout& layout, cv::Size original, int max_tiles, int overlap) {
+  SCOPED_TRACE(testing::Message() << original << " max_tiles " << max_tiles);
+  const cv::Size scaled = layout.scaled.content;
+  EXPECT_EQ(layout.scaled.original, original);
+  EXPECT_EQ(layout.scaled.target, scaled);
+  EXPECT_LE(layout.scaled.scale_x, 1.0);
+  EXPECT_LE(layout.scaled.scale_y, 1.0);
+  EXPECT_NEAR(layout.scaled.scale_x, layout.scaled.scale_y,
+              1.0 / std::min(scaled.width, scaled.height));
+  ASSERT_GE(layout.tiles.size(), 1u);
+  EXPECT_LE(static_cast<int>(layout.tiles.size()), max_tiles);
+  ASSERT_EQ(layout.owned.size(), layout.tiles.size());
+  cv::Mat owners(scaled, CV_32S, cv::Scalar(0));
+  const cv::Rect image(cv::Point(0, 0), scaled);
+  for (size_t t = 0; t < layout.tiles.size(); ++t) {
+    const cv::Rect& tile = layout.tiles[t];
+    const cv::Rect& owned = layout.owned[t];
+    EXPECT_EQ(tile & image, tile);
+    EXPECT_LE(tile.width, 640);
+    EXPECT_LE(tile.height, 640);
+    EXPECT_EQ(owned & tile, owned);
+    // Half an overlap between an owned part and an edge the tile shares.
+    if (owned.x > 0) {
+      EXPECT_GE(owned.x - tile.x, overlap / 2);
+    }
+    if (owned.y > 0) {
+      EXPECT_GE(owned.y - tile.y, overlap / 2);
+    }
+    if (owned.br().x < scaled.width) {
+      EXPECT_GE(tile.br().x - owned.br().x, overlap / 2);
+    }
+    if (owned.br().y < scaled.height) {
+      EXPECT_GE(tile.br().y - owned.br().y, overlap / 2);
+    }
+    owners(owned) += 1;
+  }
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(owners, &lo, &hi);
+  EXPECT_EQ(lo, 1) << "a pixel no tile owns";
+  EXPECT_EQ(hi, 1) << "a pixel two tiles own";
+}
+
+TEST(TileLayoutTest, NativeResolutionWhereTheTilesAllowIt) {
+  struct Case {
+    cv::Size original;
+    int max_tiles;
+    cv::Size scaled;
+    size_t tiles;
+  };
+  const std::vector<Case> cases = {
+      {{1242, 375}, 2, {1242, 375}, 2},    // KITTI: native in two
+      {{1242, 375}, 4, {1242, 375}, 2},    // no more tiles than needed
+      {{1242, 375}, 1, {640, 193}, 1},     // one: the letterbox's scale
+      {{1280, 720}, 6, {1280, 720}, 6},    // HD: 3 x 2
+      {{1280, 720}, 4, {1248, 702}, 4},    // 2 x 2 reach 1248 px
+      {{1280, 720}, 2, {1137, 640}, 2},    // as large as two allow
+      {{1920, 1080}, 6, {1856, 1044}, 6},  // full HD: 3 x 2 reach 1856 px
+      {{1920, 1080}, 2, {1137, 640}, 2},  {{300, 700}, 2, {300, 700}, 2},  // tall: one column
+      {{640, 480}, 2, {640, 480}, 1},  // fits: one tile, as it is
+  };
+  for (const Case& c : cases) {
+    const TileLayout layout = ComputeTileLayout(c.original, {640, 640}, c.max_tiles, 32);
+    EXPECT_EQ(layout.scaled.content, c.scaled) << c.original << " max_tiles " << c.max_tiles;
+    EXPECT_EQ(layout.tiles.size(), c.tiles) << c.original << " max_tiles " << c.max_tiles;
+    ExpectValidLayout(layout, c.original, c.max_tiles, 32);
+  }
+  // KITTI's two tiles: the halves of the image, overlapping by 38 px and
+  // split at their middle.
+  const TileLayout kitti = ComputeTileLayout({1242, 375}, {640, 640}, 2, 32);
+  EXPECT_EQ(kitti.tiles[0], cv::Rect(0, 0, 640, 375));
+  EXPECT_EQ(kitti.tiles[1], cv::Rect(602, 0, 640, 375));
+  EXPECT_EQ(kitti.owned[0], cv::Rect(0, 0, 621, 375));
+  EXPECT_EQ(kitti.owned[1], cv::Rect(621, 0, 621, 375));
+
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> side(1, 4000), tiles(1, 9), overlap(0, 200);
+  for (int i = 0; i < 300; ++i) {
+    const cv::Size original(side(rng), side(rng));
+    const int max_tiles = tiles(rng), min_overlap = overlap(rng);
+    const TileLayout layout = ComputeTileLayout(original, {640, 640}, max_tiles, min_overlap);
+    ExpectValidLayout(layout, original, max_tiles, min_overlap);
+    // Neighbouring tiles overlap by at least min_overlap.
+    std::vector<int> xs, ys;
+    for (const cv::Rect& tile : layout.tiles) {
+      xs.push_back(tile.x);
+      ys.push_back(tile.y);
+    }
+    for (std::vector<int>* offsets : {&xs, &ys}) {
+      std::sort(offsets->begin(), offsets->end());
+      offsets->erase(std::unique(offsets->begin(), offsets->end()), offsets->end());
+    }
+    EXPECT_EQ(xs.size() * ys.size(), layout.tiles.size()) << original << ": not a grid";
+    for (size_t k = 1; k < xs.size(); ++k) {
+      EXPECT_GE(xs[k - 1] + layout.tiles[0].width - xs[k], min_overlap) << original;
+    }
+    for (size_t k = 1; k < ys.size(); ++k) {
+      EXPECT_GE(ys[k - 1] + layout.tiles[0].height - ys[k], min_overlap) << original;
+    }
+  }
+  EXPECT_THROW(ComputeTileLayout({0, 10}, {640, 640}, 2, 32), std::invalid_argument);
+  EXPECT_THROW(ComputeTileLayout({100, 10}, {640, 640}, 0, 32), std::invalid_argument);
+  EXPECT_THROW(ComputeTileLayout({100, 10}, {640, 640}, 2, 640), std::invalid_argument);
+}
+
 TEST(XFeatExtractorTest, DeterministicGreyEqualsReplicatedBgrNoKeypointInPadding) {
   AG_REQUIRE_SHARED(model, "models/xfeat.onnx");
   AG_REQUIRE_SHARED(image_path, kKittiLeft0);
   FeatureOptions options;
   options.top_k = 1024;
+  options.max_tiles = 1;  // the letterbox; tiles: XFeatTest.TilesKeepKittisNativeResolution
   const XFeatExtractor xfeat(model, options);
   const cv::Mat grey = cv::imread(image_path, cv::IMREAD_GRAYSCALE);
   cv::Mat bgr;

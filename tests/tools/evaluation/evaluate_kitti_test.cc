@@ -51,9 +51,11 @@ TEST(EvaluateKitti, RecoversThePseudoAirAgentsKnownOffset) {
   RecordProperty("translation_error_m", std::to_string(last->error->translation_m));
   RecordProperty("yaw_error_deg", std::to_string(last->error->yaw_deg));
   // The offset is 5.7 m and 30 deg; the two cameras are 0.54 m apart, with
-  // OXTS poses and the factory calibration.
-  EXPECT_LT(last->error->translation_m, 0.1);
-  EXPECT_LT(last->error->yaw_deg, 0.5);
+  // OXTS poses and the factory calibration. Measured 0.031 m / 0.10 deg
+  // with XFeat at native resolution (two tiles per 1242x375 image), 0.065 m
+  // / 0.14 deg with each image shrunk into one input (features.max_tiles 1).
+  EXPECT_LT(last->error->translation_m, 0.05);
+  EXPECT_LT(last->error->yaw_deg, 0.3);
   EXPECT_GE(last->inliers, 50);
 }
 
