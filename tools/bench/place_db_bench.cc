@@ -222,16 +222,19 @@ int main(int argc, char** argv) {
       if (n <= uniform_max) ag::Run(ag::Uniform(n, queries, 12), options, efs, 0);
     }
     std::mt19937 rng(1);
-    const ag::AirKeyframe typical = ag::SyntheticKeyframe(
-        "uav1", 0, ag::Pose::Identity(), ag::RandomUnitVector(512, rng), 500, 64, rng);
-    const int64_t bytes = ag::KeyframeBytes(typical);
-    std::printf(
-        "A typical retained keyframe (500 keypoints, 64-D float descriptors, 512-D global): %.1f "
-        "KB;\n"
-        "default max_bytes %.2g B holds %lld of them (max_keyframes %lld).\n",
-        bytes / 1e3, static_cast<double>(defaults.max_bytes),
-        static_cast<long long>(defaults.max_bytes / bytes),
-        static_cast<long long>(defaults.max_keyframes));
+    for (int keypoints : {512, 1024}) {
+      const ag::AirKeyframe typical = ag::SyntheticKeyframe(
+          "uav1", 0, ag::Pose::Identity(), ag::RandomUnitVector(512, rng), keypoints, 64, rng);
+      const int64_t bytes = ag::KeyframeBytes(typical);
+      const int64_t held = std::min(defaults.max_bytes / bytes, defaults.max_keyframes);
+      std::printf(
+          "A retained keyframe of %d keypoints (64-D float descriptors, 512-D global): %.1f KB; "
+          "the default caps (max_bytes %.2g B, max_keyframes %lld) hold %lld of them, %.1f h of "
+          "one UAV at 1 keyframe/s.\n",
+          keypoints, bytes / 1e3, static_cast<double>(defaults.max_bytes),
+          static_cast<long long>(defaults.max_keyframes), static_cast<long long>(held),
+          static_cast<double>(held) / 3600.0);
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "place_db_bench: %s\n", e.what());
     return 1;
