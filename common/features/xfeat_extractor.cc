@@ -44,6 +44,23 @@ float SampleBilinear(const cv::Mat& map, float u, float v) {
   return (1 - ay) * ((1 - ax) * r0[x0] + ax * r0[x1]) + ay * ((1 - ax) * r1[x0] + ax * r1[x1]);
 }
 
+Eigen::Vector2f RefinePeak(const cv::Mat& heat, int x, int y) {
+  // Per axis: the vertex of the parabola through the maximum and its two
+  // neighbours, -(right - left) / (2 (left + right - 2 centre)).
+  auto vertex = [](float before, float centre, float after) {
+    const float curvature = before + after - 2 * centre;
+    if (!(curvature < 0)) return 0.0f;  // flat (or not a maximum): stay
+    return std::clamp(-0.5f * (after - before) / curvature, -0.5f, 0.5f);
+  };
+  const float* row = heat.ptr<float>(y);
+  float dx = 0, dy = 0;
+  if (x > 0 && x + 1 < heat.cols) dx = vertex(row[x - 1], row[x], row[x + 1]);
+  if (y > 0 && y + 1 < heat.rows) {
+    dy = vertex(heat.ptr<float>(y - 1)[x], row[x], heat.ptr<float>(y + 1)[x]);
+  }
+  return {static_cast<float>(x) + dx, static_cast<float>(y) + dy};
+}
+
 XFeatDecoded DecodeXFeat(const float* descriptors, float* logits, const float* reliability,
                          cv::Size cells, cv::Size content, const XFeatDecodeOptions& options) {
   constexpr int kCell = XFeatExtractor::kCell;
@@ -128,7 +145,8 @@ XFeatDecoded DecodeXFeat(const float* descriptors, float* logits, const float* r
   out.descriptors.create(static_cast<int>(keep), kDim, CV_32F);
   for (size_t k = 0; k < keep; ++k) {
     const Candidate& cand = candidates[k];
-    out.keypoints.emplace_back(static_cast<float>(cand.x), static_cast<float>(cand.y));
+    out.keypoints.push_back(options.subpixel ? RefinePeak(heat, cand.x, cand.y)
+                                             : Eigen::Vector2f(cand.x, cand.y));
     out.scores.push_back(cand.score);
     const float u =
         std::clamp((cand.x + 0.5f) * inv_cell - 0.5f, 0.0f, static_cast<float>(cells.width - 1));
@@ -222,6 +240,7 @@ internal::XFeatDecoded XFeatExtractor::RunAndDecode(const cv::Mat& input, cv::Si
   decode.top_k = options_.top_k;
   decode.detection_threshold = static_cast<float>(options_.detection_threshold);
   decode.nms_kernel_px = options_.nms_kernel_px;
+  decode.subpixel = options_.subpixel;
   // The outputs share memory with the network's buffers: decode them
   // before another call may run the network again.
   std::lock_guard<std::mutex> lock(mutex_);

@@ -6,7 +6,9 @@
 // modules/xfeat.py): softmax over 65 logits per 8x8 cell, pixel-shuffle of the
 // 64 keypoint channels into a full-resolution heatmap, 5x5 NMS above a
 // threshold, score = heatmap x reliability, top-k, descriptors sampled from
-// the 1/8-resolution map and L2-normalised.
+// the 1/8-resolution map and L2-normalised. Beyond upstream: keypoints are
+// refined to sub-pixel precision (FeatureOptions::subpixel), and images
+// larger than the fixed input are cut into tiles (FeatureOptions::max_tiles).
 
 #include <mutex>
 #include <opencv2/dnn.hpp>
@@ -64,11 +66,12 @@ struct XFeatDecodeOptions {
   int top_k = 1024;
   float detection_threshold = 0.05f;
   int nms_kernel_px = 5;
+  bool subpixel = false;  ///< keypoints refined by RefinePeak (else whole network pixels)
 };
 
 /// Keypoints in network pixels, sorted by decreasing score.
 struct XFeatDecoded {
-  std::vector<Eigen::Vector2f> keypoints;  ///< network px (integer positions)
+  std::vector<Eigen::Vector2f> keypoints;  ///< network px (whole, or refined by RefinePeak)
   std::vector<float> scores;
   cv::Mat descriptors;  ///< N x 64 CV_32F, rows L2-normalised
 };
@@ -80,6 +83,12 @@ struct XFeatDecoded {
 /// Ties in score are broken by (y, x) so that the result is deterministic.
 XFeatDecoded DecodeXFeat(const float* descriptors, float* logits, const float* reliability,
                          cv::Size cells, cv::Size content, const XFeatDecodeOptions& options);
+
+/// The sub-pixel position of a keypoint heatmap's local maximum at whole
+/// pixel (x, y): per axis, the vertex of the parabola through it and its two
+/// neighbours, within half a pixel of (x, y); an axis on the map's edge or
+/// without curvature keeps its whole pixel.
+Eigen::Vector2f RefinePeak(const cv::Mat& heat, int x, int y);
 
 /// Bilinear sample of a single-channel CV_32F map at continuous position
 /// (u, v) in map pixels (centre of pixel (0,0) is (0,0)), clamped to the map.

@@ -24,11 +24,13 @@ namespace {
 constexpr const char* kKitti =
     "data/kitti_raw_2011_09_26_drive_0001_mini/2011_09_26/2011_09_26_drive_0001_sync/";
 
-std::unique_ptr<FeatureExtractor> XFeat(const std::string& model, int top_k, int max_tiles = 2) {
+std::unique_ptr<FeatureExtractor> XFeat(const std::string& model, int top_k, int max_tiles = 2,
+                                        bool subpixel = false) {
   FeatureOptions o;
   o.model_path = model;
   o.top_k = top_k;
   o.max_tiles = max_tiles;
+  o.subpixel = subpixel;
   auto e = CreateFeatureExtractor(o);
   EXPECT_EQ(e->type(), "xfeat");
   return e;
@@ -124,6 +126,7 @@ struct StereoRows {
   size_t matches = 0;
   double rms_px = 0;
   double p90_px = 0;
+  double within_1px = 0;              ///< fraction with |row difference| < 1 px
   float min_x = 1e9f, max_x = -1e9f;  ///< of the left image's matched keypoints
 };
 
@@ -149,28 +152,38 @@ StereoRows MeasureStereoRows(const FeatureExtractor& extractor, const std::strin
   double sum2 = 0;
   for (float e : dy) sum2 += e * e;
   out.rms_px = std::sqrt(sum2 / dy.size());
+  out.within_1px =
+      static_cast<double>(std::count_if(dy.begin(), dy.end(), [](float e) { return e < 1.0f; })) /
+      dy.size();
   std::sort(dy.begin(), dy.end());
   out.p90_px = dy[dy.size() * 9 / 10];
   return out;
 }
 
-TEST(XFeatTest, TilesKeepKittisNativeResolution) {
+TEST(XFeatTest, KittiStereoRowsAgreeBetterInTilesAndSubpixel) {
   AG_REQUIRE_SHARED(model, "models/xfeat.onnx");
   AG_REQUIRE_SHARED(drive, kKitti);  // ends in '/'
-  // 1242x375: shrunk into one input (half the resolution) or cut into two
-  // tiles at native resolution (the default).
+  // 1242x375: shrunk into one input (half the resolution), cut into two
+  // tiles at native resolution (the default), and those refined to
+  // sub-pixel positions.
   const StereoRows shrunk = MeasureStereoRows(*XFeat(model, 1024, 1), drive);
   const StereoRows native = MeasureStereoRows(*XFeat(model, 1024, 2), drive);
-  std::printf(
-      "KITTI stereo rows, one input: %zu matches, rms %.3f px, p90 %.3f px; two tiles: %zu "
-      "matches, rms %.3f px, p90 %.3f px\n",
-      shrunk.matches, shrunk.rms_px, shrunk.p90_px, native.matches, native.rms_px, native.p90_px);
+  const StereoRows refined = MeasureStereoRows(*XFeat(model, 1024, 2, true), drive);
+  for (const auto& [name, rows] : {std::pair{"one input", &shrunk},
+                                   {"two tiles", &native},
+                                   {"two tiles, sub-pixel", &refined}}) {
+    std::printf("KITTI stereo rows, %s: %zu matches, rms %.3f px, p90 %.3f px, %.3f within 1 px\n",
+                name, rows->matches, rows->rms_px, rows->p90_px, rows->within_1px);
+  }
   // Measured: one input rms 1.10 px, p90 1.94 px (a network pixel is 1.94
-  // image pixels); two tiles rms 0.84 px, p90 1.00 px, from 2676 matches.
+  // image pixels); two tiles rms 0.84 px, p90 1.00 px, from 2676 matches;
+  // sub-pixel rms 0.70 px.
   ASSERT_GT(native.matches, 1500u);
   EXPECT_LT(native.rms_px, 0.95);
   EXPECT_LT(native.rms_px, 0.85 * shrunk.rms_px);
   EXPECT_LE(native.p90_px, 1.0);
+  EXPECT_LT(refined.rms_px, 0.9 * native.rms_px);
+  EXPECT_GT(refined.within_1px, native.within_1px + 0.1);
   // Matches come from both tiles, up to both ends of the image.
   EXPECT_LT(native.min_x, 100.0f);
   EXPECT_GT(native.max_x, 1142.0f);

@@ -196,6 +196,7 @@ TEST(XFeatDecodeTest, MatchesThePixelByPixelReference) {
     options.top_k = c.top_k;
     options.detection_threshold = c.threshold;
     options.nms_kernel_px = c.nms;
+    options.subpixel = false;  // the reference's whole pixels; RefinePeak below
     const internal::XFeatDecoded want = ReferenceDecode(raw, c.content, options);
     std::vector<float> logits = raw.logits;  // scratch for DecodeXFeat
     const internal::XFeatDecoded got =
@@ -208,6 +209,57 @@ TEST(XFeatDecodeTest, MatchesThePixelByPixelReference) {
       EXPECT_LT(p.y(), c.content.height);
     }
   }
+}
+
+TEST(XFeatDecodeTest, RefinePeakFindsTheVertexWithinHalfAPixel) {
+  // A paraboloid's vertex exactly; a Gaussian's (the shape of a softmax of
+  // quadratic logits) to a tenth of a pixel.
+  const Eigen::Vector2f centre(10.3f, 7.8f);
+  cv::Mat parabola(16, 20, CV_32F), gauss(16, 20, CV_32F);
+  for (int y = 0; y < 16; ++y) {
+    for (int x = 0; x < 20; ++x) {
+      const float d2 = (Eigen::Vector2f(x, y) - centre).squaredNorm();
+      parabola.at<float>(y, x) = 100.0f - d2;
+      gauss.at<float>(y, x) = std::exp(-d2 / (2 * 1.2f * 1.2f));
+    }
+  }
+  EXPECT_LT((internal::RefinePeak(parabola, 10, 8) - centre).norm(), 1e-4f);
+  EXPECT_LT((internal::RefinePeak(gauss, 10, 8) - centre).norm(), 0.1f);
+  // Never more than half a pixel from the maximum it starts at.
+  const Eigen::Vector2f off = internal::RefinePeak(parabola, 12, 5);
+  EXPECT_FLOAT_EQ(off.x(), 11.5f);
+  EXPECT_FLOAT_EQ(off.y(), 5.5f);
+  // On the map's edge, and where flat, the whole pixel stays.
+  EXPECT_EQ(internal::RefinePeak(parabola, 0, 0), Eigen::Vector2f(0, 0));
+  EXPECT_EQ(internal::RefinePeak(parabola, 19, 15), Eigen::Vector2f(19, 15));
+  EXPECT_EQ(internal::RefinePeak(cv::Mat(5, 5, CV_32F, cv::Scalar(0.3f)), 2, 2),
+            Eigen::Vector2f(2, 2));
+
+  // Decoding with it moves keypoints by at most half a pixel per axis and
+  // changes nothing else.
+  const RawOutputs raw = RandomOutputs(9);
+  internal::XFeatDecodeOptions options;
+  options.subpixel = false;
+  std::vector<float> scratch = raw.logits;
+  const internal::XFeatDecoded whole =
+      internal::DecodeXFeat(raw.descriptors.data(), scratch.data(), raw.reliability.data(),
+                            cv::Size(kCells, kCells), {640, 480}, options);
+  options.subpixel = true;
+  scratch = raw.logits;
+  const internal::XFeatDecoded refined =
+      internal::DecodeXFeat(raw.descriptors.data(), scratch.data(), raw.reliability.data(),
+                            cv::Size(kCells, kCells), {640, 480}, options);
+  ASSERT_EQ(refined.keypoints.size(), whole.keypoints.size());
+  ASSERT_GT(whole.keypoints.size(), 50u);
+  EXPECT_EQ(refined.scores, whole.scores);
+  EXPECT_EQ(cv::norm(refined.descriptors, whole.descriptors, cv::NORM_INF), 0.0);
+  int moved = 0;
+  for (size_t k = 0; k < whole.keypoints.size(); ++k) {
+    const Eigen::Vector2f d = refined.keypoints[k] - whole.keypoints[k];
+    EXPECT_LE(d.cwiseAbs().maxCoeff(), 0.5f);
+    moved += d != Eigen::Vector2f::Zero();
+  }
+  EXPECT_GT(moved, static_cast<int>(whole.keypoints.size() / 2));
 }
 
 TEST(XFeatDecodeTest, SampleBilinearInterpolatesAndClamps) {
