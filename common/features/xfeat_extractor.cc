@@ -288,9 +288,11 @@ LocalFeatures XFeatExtractor::Extract(const cv::Mat& image) const {
     decoded[t] = RunAndDecode(ApplyLetterbox(crop, pad), tile.size());
     for (size_t k = 0; k < decoded[t].keypoints.size(); ++k) {
       const Eigen::Vector2f p = decoded[t].keypoints[k] + Eigen::Vector2f(tile.x, tile.y);
-      if (!layout.owned[t].contains(cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())))) {
-        continue;
-      }
+      // Owned by the whole pixel it was detected at (a sub-pixel offset is
+      // at most half a pixel), so both tiles decide alike near the split.
+      const cv::Point pixel(static_cast<int>(std::lround(p.x())),
+                            static_cast<int>(std::lround(p.y())));
+      if (!layout.owned[t].contains(pixel)) continue;
       candidates.push_back({decoded[t].scores[k], p, t, static_cast<int>(k)});
     }
   }
